@@ -1,0 +1,24 @@
+"""Package exceptions, one place (rosbags style). Each message says what to do."""
+
+
+class RotorEstimatorError(Exception):
+    """Base class of every error this package raises on purpose."""
+
+
+class ConfigError(RotorEstimatorError, ValueError):
+    """A configuration file or value is missing, has the wrong type, unit or range.
+
+    The message names the field (dotted path, e.g. ``rig.shaft.mass_kg``).
+    """
+
+
+class InputError(RotorEstimatorError, ValueError):
+    """Input data (samples, pulses, bag contents) cannot be used as given."""
+
+
+class FilterDivergedError(RotorEstimatorError, RuntimeError):
+    """The filter's covariance lost positive definiteness or its state became non-finite."""
+
+
+class BagError(RotorEstimatorError):
+    """A bag cannot be opened or read (missing, truncated, corrupt, wrong topics)."""

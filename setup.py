@@ -1,0 +1,65 @@
+"""ament_python package that also installs with plain pip on a machine without ROS."""
+import glob
+import os
+
+from setuptools import find_packages, setup
+
+PACKAGE = "rotor_estimator"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="Identify rotor-bearing stiffness and damping while the machine runs, "
+                "and diagnose why model and rig disagree (ROS 2 + offline).",
+    long_description=open("README.md").read() if os.path.exists("README.md") else "",
+    long_description_content_type="text/markdown",
+    license="Apache-2.0",
+    python_requires=">=3.10",
+    packages=find_packages(exclude=["tests", "tests.*"]),
+    package_data={PACKAGE: ["rigs/*.yaml", "rotors/*.yaml"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/launch", glob.glob("launch/*.py")),
+        (f"share/{PACKAGE}/config", glob.glob("config/*.yaml")),
+        (f"share/{PACKAGE}/bags", glob.glob("bags/**/*", recursive=True) and
+         [p for p in glob.glob("bags/*") if os.path.isfile(p)]),
+    ],
+    install_requires=[
+        "numpy>=1.24",
+        "scipy>=1.10",
+        "numba>=0.58",
+        "filterpy>=1.4.5",
+        "pyyaml>=6.0",
+        "rosbags>=0.10",
+        "mcap>=1.1",
+        "mcap-ros2-support>=0.5",
+        "tqdm>=4.60",
+        "matplotlib>=3.6",
+    ],
+    extras_require={
+        # A real rclpy from the ROS 2 Kilted wheels, for machines without a system ROS 2.
+        # On a rig with ROS 2 installed (colcon), do not install this extra: the system rclpy is used.
+        "ros": [
+            "ros-rclpy",
+            "ros-rmw-fastrtps-cpp",
+            "ros-std-msgs",
+            "ros-sensor-msgs",
+            "ros-geometry-msgs",
+            "ros-diagnostic-msgs",
+            "ros-std-srvs",
+        ],
+        "test": ["pytest>=7"],
+    },
+    zip_safe=True,
+    maintainer="rotor_estimator developers",
+    maintainer_email="dev@rotor-estimator.invalid",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "rotor-estimator = rotor_estimator.cli:main",
+            "estimator_node = rotor_estimator.nodes.estimator_node:main",
+            "simulator_node = rotor_estimator.nodes.simulator_node:main",
+        ],
+    },
+)
