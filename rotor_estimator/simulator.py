@@ -253,8 +253,9 @@ def simulate(rig: RigConfig, scenario: Scenario | None = None, *, seed: int | No
     force = np.zeros((t_rec.size, 2))
     for i in imp:
         overlap = np.clip(np.minimum(t_rec + dt, i.start_s + i.duration_s) - np.maximum(t_rec, i.start_s), 0, None)
-        force[:, 0] += i.force_x_n * overlap / dt
-        force[:, 1] += i.force_y_n * overlap / dt
+        fraction = np.round(overlap / dt, 9)  # exact 0 or 1 when the pulse edges sit on the sample grid
+        force[:, 0] += i.force_x_n * fraction
+        force[:, 1] += i.force_y_n * fraction
     pulses = pulse_times_for_ramp(omega0, alpha, scenario.duration_s)
     stamps_ns = epoch_ns + np.round(t_rec * 1e9).astype(np.int64)
     pulse_ns = epoch_ns + np.round(pulses * 1e9).astype(np.int64)

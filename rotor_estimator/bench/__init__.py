@@ -1,0 +1,1 @@
+"""Benchmarks behind ``rotor-estimator bench ...``: scripts that print figures, never timed tests."""
