@@ -1,0 +1,36 @@
+"""Message adapters: ROS messages <-> plain arrays, for rclpy and rosbags message classes alike.
+
+Decoders read fields by name and dispatch on the message type name, so the
+same function accepts an rclpy message, a rosbags typestore dataclass or an
+mcap_ros2 decoded message. Encoders take a :class:`MessageFactory`
+(:class:`RclpyFactory` or :class:`TypestoreFactory`). Stamps are integer ns.
+A message of the wrong type raises ``rotor_estimator.errors.InputError``.
+"""
+from ._common import msg_typename, ns_to_sec_nanosec, stamp_to_ns
+from .cloud import cloud_columns, cloud_from_columns
+from .factory import MessageFactory, RclpyFactory, TypestoreFactory, default_typestore, make_header, make_time
+from .inputs import (IMPACT_FIELDS, IMPACT_TYPES, PROBE_FIELDS, PROBE_TYPES, PULSE_TYPES, impact_block_from_msg,
+                     impact_block_to_msg, impact_sample_to_msg, probe_block_from_msg, probe_block_to_msg,
+                     probe_sample_to_msg, pulse_stamp_from_msg, pulse_to_msg)
+from .outputs import (COVARIANCE_NAMES, INNOVATION_NAMES, NIS_NAMES, SHAFT_NAMES, Coefficients, Covariance,
+                      DiagnosticRecord, Diagnostics, Innovation, Nis, Shaft, coefficients_from_msg,
+                      coefficients_to_msg, covariance_from_msg, covariance_to_msg, diagnostics_from_msg,
+                      diagnostics_to_msg, innovation_from_msg, innovation_to_msg, nis_from_msg, nis_to_msg,
+                      shaft_from_msg, shaft_to_msg)
+from .topics import (COEFFICIENTS_TOPIC, COVARIANCE_TOPIC, DEFAULT_INPUT_TOPICS, DEFAULT_NAMESPACE,
+                     DIAGNOSTICS_TOPIC, INNOVATION_TOPIC, NIS_TOPIC, SHAFT_TOPIC, InputTopics, output_topic)
+
+__all__ = [
+    "COEFFICIENTS_TOPIC", "COVARIANCE_NAMES", "COVARIANCE_TOPIC", "DEFAULT_INPUT_TOPICS", "DEFAULT_NAMESPACE",
+    "DIAGNOSTICS_TOPIC", "IMPACT_FIELDS", "IMPACT_TYPES", "INNOVATION_NAMES", "INNOVATION_TOPIC", "NIS_NAMES",
+    "NIS_TOPIC", "PROBE_FIELDS", "PROBE_TYPES", "PULSE_TYPES", "SHAFT_NAMES", "SHAFT_TOPIC",
+    "Coefficients", "Covariance", "DiagnosticRecord", "Diagnostics", "InputTopics", "Innovation",
+    "MessageFactory", "Nis", "RclpyFactory", "Shaft", "TypestoreFactory",
+    "cloud_columns", "cloud_from_columns", "coefficients_from_msg", "coefficients_to_msg",
+    "covariance_from_msg", "covariance_to_msg", "default_typestore", "diagnostics_from_msg",
+    "diagnostics_to_msg", "impact_block_from_msg", "impact_block_to_msg", "impact_sample_to_msg",
+    "innovation_from_msg", "innovation_to_msg", "make_header", "make_time", "msg_typename",
+    "nis_from_msg", "nis_to_msg", "ns_to_sec_nanosec", "output_topic", "probe_block_from_msg",
+    "probe_block_to_msg", "probe_sample_to_msg", "pulse_stamp_from_msg", "pulse_to_msg",
+    "shaft_from_msg", "shaft_to_msg", "stamp_to_ns",
+]
