@@ -115,32 +115,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_optional_commands(sub, bench) -> None:
-    """Commands that live in their own modules (nodes/bags, diagnosis, identification, virtual sensing)."""
-    import importlib
+    """Commands that live in their own modules (bags and nodes, diagnosis, identification, virtual sensing)."""
+    from . import commands
 
-    for module_name, hooks in (
-        ("rotor_estimator.commands", ("add_parsers",)),
-        ("rotor_estimator.virtual_sensing_cli", ("add_virtual_sensing_parser",)),
-    ):
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:
-            if exc.name == module_name:
-                continue
-            raise
-        for hook in hooks:
-            getattr(module, hook)(sub)
+    commands.add_parsers(sub)
+    commands.add_bench_parsers(bench)
     try:
-        module = importlib.import_module("rotor_estimator.virtual_sensing_cli")
-        module.add_bench_parser(bench)
-    except ModuleNotFoundError:
-        pass
-    try:
-        module = importlib.import_module("rotor_estimator.commands")
-        if hasattr(module, "add_bench_parsers"):
-            module.add_bench_parsers(bench)
-    except ModuleNotFoundError:
-        pass
+        from . import virtual_sensing_cli
+    except ImportError:  # TODO(lead): remove once virtual sensing lands
+        return
+    virtual_sensing_cli.add_virtual_sensing_parser(sub)
+    virtual_sensing_cli.add_bench_parser(bench)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -33,8 +33,8 @@ def shaft_inputs_from_recording(recording: RigRecording, tach_config=None) -> Sh
     if recording.pulse_stamps_ns.size < 2:
         raise InputError("the recording has fewer than 2 keyphasor pulses: the shaft angle, which phases the "
                          "imbalance force, cannot be tracked")
-    states = shaft_states_from_pulses(recording.pulse_stamps_ns, recording.stamps_ns,
-                                      tach_config or TachometerConfig())
+    states, _pulse_counters = shaft_states_from_pulses(recording.pulse_stamps_ns, recording.stamps_ns,
+                                                       tach_config or TachometerConfig())
     return ShaftInputs(angle_rad=np.asarray(states.angle_rad, dtype=float),
                        speed_rad_s=np.asarray(states.speed_rad_s, dtype=float),
                        accel_rad_s2=np.asarray(states.accel_rad_s2, dtype=float),

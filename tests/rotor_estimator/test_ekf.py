@@ -123,13 +123,14 @@ def test_corrupted_covariance_recovers_to_last_healthy_state(seed_rig_file, impa
     args = _inputs(impact_sim)
     ekf = StreamingEKF(rig, cfg)
     ekf.process_block(*(a[:500] for a in args))
-    healthy = ekf.coefficients
+    healthy, healthy_std = ekf.coefficients, ekf.coefficient_std
     ekf.P[9, 9] = -1.0e30  # not positive definite: the next step must detect and recover
     ekf.P[0, 0] = np.nan
     ekf.process_block(*(a[500:510] for a in args))
     assert ekf.health.divergence_recoveries >= 1
     assert np.all(np.isfinite(ekf.x)) and np.all(np.diag(ekf.P) > 0)
-    assert np.allclose(ekf.coefficients, healthy, rtol=0.05)
+    # back at the last healthy estimate, moved only by the 9 samples after the failure
+    assert np.all(np.abs(ekf.coefficients - healthy) < 2 * healthy_std)
 
 
 def test_initial_coefficients_can_seed_a_second_pass(seed_rig_file):
