@@ -12,6 +12,7 @@ covariance stops being positive definite or the innovations stay inconsistent.
 """
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,9 +84,10 @@ class FilterHealth:
     counts: dict = field(default_factory=lambda: {name: 0 for name in kern.STATUS_NAMES.values()})
     divergence_recoveries: int = 0
     consecutive_rejections: int = 0
-    nis_window: list = field(default_factory=list)
+    nis_window: deque = field(default_factory=lambda: deque(maxlen=StreamingEKF.NIS_WINDOW))
 
     def nis_window_mean(self) -> float:
+        """Mean NIS of the last updates (chi-square with 4 dof: 4 when consistent)."""
         return float(np.mean(self.nis_window)) if self.nis_window else float("nan")
 
 
@@ -143,6 +145,12 @@ class StreamingEKF:
         self._prev_impact = np.zeros(2)
         self._healthy = (self.x.copy(), self.P.copy(), None)
         self.health = FilterHealth()
+        self._step_buffers = {
+            "dt": np.zeros(1), "angle": np.zeros(1), "speed": np.zeros(1), "accel": np.zeros(1),
+            "impact": np.zeros((1, 2)), "y": np.zeros((1, 4)), "skip": np.zeros(1, dtype=np.bool_),
+            "status": np.zeros(1, dtype=np.int64), "nis": np.zeros(1), "innov": np.zeros((1, 4)),
+            "sstd": np.zeros((1, 4)),
+        }
 
     @property
     def initialized(self) -> bool:
@@ -236,13 +244,46 @@ class StreamingEKF:
 
     def step(self, t_s: float, probes_m: np.ndarray, angle_rad: float, speed_rad_s: float,
              accel_rad_s2: float = 0.0, impact_n: np.ndarray | None = None) -> BlockResult:
-        """One sample: predict to ``t_s`` (Eqs. 12-13), update with ``probes_m`` (Eqs. 15-17)."""
-        imp = np.zeros((1, 2)) if impact_n is None else np.asarray(impact_n, dtype=float).reshape(1, 2)
-        return self.process_block(np.array([t_s], dtype=float), np.asarray(probes_m, dtype=float).reshape(1, 4),
-                                  np.array([angle_rad]), np.array([speed_rad_s]), np.array([accel_rad_s2]), imp)
+        """One sample: predict to ``t_s`` (Eqs. 12-13), update with ``probes_m`` (Eqs. 15-17).
+
+        Same kernel and arithmetic as :meth:`process_block` with a block of one, through
+        preallocated buffers (the per-message path of a live node).
+        """
+        imp = np.zeros(2) if impact_n is None else np.asarray(impact_n, dtype=float).reshape(2)
+        y = np.asarray(probes_m, dtype=float).reshape(4)
+        if not self.initialized or not t_s > self.t_s:
+            return self.process_block(np.array([t_s], dtype=float), y.reshape(1, 4), np.array([angle_rad]),
+                                      np.array([speed_rad_s]), np.array([accel_rad_s2]), imp.reshape(1, 2))
+        b = self._step_buffers
+        b["dt"][0] = t_s - self.t_s
+        b["angle"][0], b["speed"][0], b["accel"][0] = self._prev_shaft
+        b["impact"][0] = self._prev_impact
+        b["y"][0] = y
+        m = self.model
+        stop = kern.run_block(self.x, self.P, b["dt"], b["angle"], b["speed"], b["accel"], b["impact"], b["y"],
+                              b["skip"], m.minv, m.gyro, m.moments, m.phases, m.wimb, m.wimp, m.hp, m.r_var,
+                              m.accel_psd, m.coeff_rw_var_rate, m.gate, m.max_step_s, b["status"], b["nis"],
+                              b["innov"], b["sstd"])
+        shaft = np.array([angle_rad, speed_rad_s, accel_rad_s2], dtype=float)
+        result = BlockResult(b["status"].copy(), b["nis"].copy(), b["innov"].copy(), b["sstd"].copy())
+        if stop < 1:
+            result.status[0] = kern.STATUS_NUMERICAL
+            self._count(result.status)
+            self._recover(t_s, y, shaft, imp)
+            return result
+        self.t_s = float(t_s)
+        self._prev_shaft = shaft
+        self._prev_impact = imp
+        self._count(result.status)
+        self._monitor(result.status, result.nis, np.array([t_s]), y.reshape(1, 4), shaft.reshape(1, 3),
+                      imp.reshape(1, 2))
+        return result
 
     # ------------------------------------------------------------------ health
     def _count(self, status: np.ndarray) -> None:
+        if status.shape[0] == 1:
+            self.health.counts[kern.STATUS_NAMES[int(status[0])]] += 1
+            return
         codes, counts = np.unique(status, return_counts=True)
         for c, k in zip(codes, counts):
             self.health.counts[kern.STATUS_NAMES[int(c)]] += int(k)
@@ -259,7 +300,21 @@ class StreamingEKF:
             self._initialize_from(t_s, probes_m, shaft, impact_n)
 
     def _monitor(self, status: np.ndarray, nis: np.ndarray, t_s, probes_m, shaft, impact_n) -> None:
-        """Track consecutive rejections and a windowed NIS; snapshot the state while healthy."""
+        """Track consecutive rejections and a windowed NIS; snapshot the state while healthy.
+
+        The kernel has already checked that ``x`` and ``diag(P)`` are finite and positive.
+        """
+        if status.shape[0] == 1:  # the per-sample path, without array temporaries
+            code = int(status[0])
+            if code == kern.STATUS_UPDATED:
+                self.health.consecutive_rejections = 0
+                self.health.nis_window.append(float(nis[0]))
+                self._healthy = (self.x.copy(), self.P.copy(), self.t_s)
+            elif code in (kern.STATUS_GATED, kern.STATUS_NUMERICAL):
+                self.health.consecutive_rejections += 1
+                if self.health.consecutive_rejections > self.MAX_CONSECUTIVE_REJECTIONS:
+                    self._recover(t_s[0], probes_m[0], shaft[0], impact_n[0])
+            return
         updated = status == kern.STATUS_UPDATED
         rejected = (status == kern.STATUS_GATED) | (status == kern.STATUS_NUMERICAL)
         if updated.any():
@@ -270,7 +325,6 @@ class StreamingEKF:
         good_nis = nis[updated]
         if good_nis.size:
             self.health.nis_window.extend(good_nis[-self.NIS_WINDOW:].tolist())
-            del self.health.nis_window[:-self.NIS_WINDOW]
         if self.health.consecutive_rejections > self.MAX_CONSECUTIVE_REJECTIONS:
             # sustained rejection means the filter, not the data, is wrong: recover
             last = len(status) - 1
