@@ -1,0 +1,11 @@
+#!/usr/bin/env python3
+"""EKF speed: our compiled EKF vs a filterpy EKF of the same model (same process, same samples).
+
+Same as ``rotor-estimator bench speed [--json]``. Targets: <= 10 us/sample, >= 20x filterpy.
+"""
+import sys
+
+from rotor_estimator.cli import main
+
+if __name__ == "__main__":
+    sys.exit(main(["bench", "speed", *sys.argv[1:]]))
