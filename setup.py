@@ -36,6 +36,7 @@ setup(
         "mcap-ros2-support>=0.5",
         "tqdm>=4.60",
         "matplotlib>=3.6",
+        "threadpoolctl>=3.1",
     ],
     extras_require={
         # A real rclpy from the ROS 2 Kilted wheels, for machines without a system ROS 2.
@@ -49,6 +50,8 @@ setup(
             "ros-diagnostic-msgs",
             "ros-std-srvs",
         ],
+        # Optional independent cross-check of the finite-element rotor (ROSS 2.3.0 needs plotly<6).
+        "ross": ["ross-rotordynamics==2.3.0", "plotly<6"],
         "test": ["pytest>=7"],
     },
     zip_safe=True,

@@ -116,14 +116,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_optional_commands(sub, bench) -> None:
     """Commands that live in their own modules (bags and nodes, diagnosis, identification, virtual sensing)."""
-    from . import commands
+    from . import commands, virtual_sensing_cli
 
     commands.add_parsers(sub)
     commands.add_bench_parsers(bench)
-    try:
-        from . import virtual_sensing_cli
-    except ImportError:  # TODO(lead): remove once virtual sensing lands
-        return
     virtual_sensing_cli.add_virtual_sensing_parser(sub)
     virtual_sensing_cli.add_bench_parser(bench)
 
