@@ -63,6 +63,7 @@ setup(
             "rotor-estimator = rotor_estimator.cli:main",
             "estimator_node = rotor_estimator.nodes.estimator_node:main",
             "simulator_node = rotor_estimator.nodes.simulator_node:main",
+            "virtual_sensing_node = rotor_estimator.nodes.virtual_sensing_node:main",
         ],
     },
 )

@@ -17,6 +17,9 @@ from .outputs import (COVARIANCE_NAMES, INNOVATION_NAMES, NIS_NAMES, SHAFT_NAMES
                       coefficients_to_msg, covariance_from_msg, covariance_to_msg, diagnostics_from_msg,
                       diagnostics_to_msg, innovation_from_msg, innovation_to_msg, nis_from_msg, nis_to_msg,
                       shaft_from_msg, shaft_to_msg)
+from .stations import (ACCEL_FIELDS, SENSOR_FIELDS, SENSOR_TOPIC_PREFIX, STATION_NAMES, STATIONS_TOPIC,
+                       VIRTUAL_SENSING_NAMESPACE, StationState, sensor_block_from_msg, sensor_block_to_msg,
+                       sensor_topic, station_from_msg, station_to_msg, station_topic)
 from .topics import (COEFFICIENTS_TOPIC, COVARIANCE_TOPIC, DEFAULT_INPUT_TOPICS, DEFAULT_NAMESPACE,
                      DIAGNOSTICS_TOPIC, INNOVATION_TOPIC, NIS_TOPIC, SHAFT_TOPIC, InputTopics, output_topic)
 
@@ -33,4 +36,9 @@ __all__ = [
     "nis_from_msg", "nis_to_msg", "ns_to_sec_nanosec", "output_topic", "probe_block_from_msg",
     "probe_block_to_msg", "probe_sample_to_msg", "pulse_stamp_from_msg", "pulse_to_msg",
     "shaft_from_msg", "shaft_to_msg", "stamp_to_ns",
+    # virtual sensing (msg_adapters.stations)
+    "ACCEL_FIELDS", "SENSOR_FIELDS", "SENSOR_TOPIC_PREFIX", "STATION_NAMES", "STATIONS_TOPIC",
+    "VIRTUAL_SENSING_NAMESPACE", "StationState",
+    "sensor_block_from_msg", "sensor_block_to_msg", "sensor_topic", "station_from_msg", "station_to_msg",
+    "station_topic",
 ]

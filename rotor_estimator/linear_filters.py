@@ -14,6 +14,13 @@ Interface shared by :class:`KalmanFilter`, :class:`ExtendedKalmanFilter` and
   measurement's direct term (accelerometers see the known force), ``R`` overrides the
   noise covariance, ``mask`` (p,) bool selects present channels (leave-one-out);
   non-finite channels are dropped and counted in ``n_rejected``.
+* Innovation gating (off by default): with ``gate_probability`` (e.g. 0.9999) an update
+  whose normalized innovation squared ``NIS = y^T S^-1 y`` (the squared Mahalanobis
+  distance of the innovation) exceeds the chi-square quantile
+  ``chi2.ppf(gate_probability, dof)`` (dof = channels used) is skipped as a whole and
+  counted in ``n_gated`` (robot_localization's outlier gate). ``last_nis`` still holds
+  its NIS. A gate rejects good data at rate ``1 - gate_probability`` and, if the model
+  is wrong, can lock the filter out: keep it generous.
 * ``run(zs, us=None, masks=None, outputs=None)``: update at every sample, then predict
   to the next; returns a :class:`FilterRun` with posterior means, the diagonal of P and,
   for ``outputs=(C, D)``, the mean ``C x + D u`` and covariance ``C P C^T`` of outputs.
@@ -24,6 +31,17 @@ uses the scaled sigma points of Van der Merwe (Eqs. 13-22 of Neisi et al., with 
 errata of the seeds README: w_i = 1/(2(L+lambda)), no R in P_xy) exactly as filterpy's
 ``MerweScaledSigmaPoints``/``UnscentedKalmanFilter`` (sigma points redrawn from the prior
 before the update), but propagates all 2n+1 points with one matrix product.
+
+A scalar random walk observed once, then an outlier that a 99.99% gate rejects:
+
+>>> m = LinearGaussianModel(F=np.eye(1), Q=np.zeros((1, 1)), H=np.eye(1), R=np.eye(1))
+>>> kf = KalmanFilter(m, x0=np.zeros(1), P0=np.eye(1), gate_probability=0.9999)
+>>> kf.update(np.array([2.0]))          # channels used
+1
+>>> kf.x, kf.P, round(kf.last_nis, 9)  # K = 1/2; NIS = y^2 / S = 4 / 2
+(array([1.]), array([[0.5]]), 2.0)
+>>> kf.update(np.array([100.0])), kf.n_gated, kf.x   # NIS 6534 > chi2.ppf(0.9999, 1) = 15.1
+(0, 1, array([1.]))
 """
 from __future__ import annotations
 
@@ -34,10 +52,10 @@ from typing import Callable, Iterator
 import numpy as np
 import scipy.linalg
 
-from .errors import FilterDivergedError, InputError
+from .errors import ConfigError, FilterDivergedError, InputError
 
 __all__ = ["LinearGaussianModel", "discretize", "merwe_weights", "KalmanFilter", "ExtendedKalmanFilter",
-           "UnscentedKalmanFilter", "FilterRun", "cholesky", "symmetrize", "single_threaded_blas"]
+           "UnscentedKalmanFilter", "FilterRun", "cholesky", "symmetrize", "single_threaded_blas", "nis_gate"]
 
 
 def symmetrize(P: np.ndarray) -> np.ndarray:
@@ -80,6 +98,24 @@ def _solve_right(A: np.ndarray, L: np.ndarray) -> np.ndarray:
     """A S^-1 for S = L L^T (two triangular solves)."""
     tmp = scipy.linalg.solve_triangular(L, A.T, lower=True, check_finite=False)
     return scipy.linalg.solve_triangular(L.T, tmp, lower=False, check_finite=False).T
+
+
+def nis_gate(gate_probability: float | None, dof: int) -> float:
+    """Chi-square threshold on the NIS for ``dof`` channels (inf when gating is off)."""
+    if gate_probability is None or dof <= 0:
+        return float("inf")
+    from scipy.stats import chi2
+
+    return float(chi2.ppf(gate_probability, dof))
+
+
+def _check_gate(gate_probability: float | None) -> float | None:
+    if gate_probability is None:
+        return None
+    g = float(gate_probability)
+    if not 0.0 < g < 1.0:
+        raise ConfigError(f"gate_probability: must be in (0, 1) or None (no gate), got {gate_probability!r}")
+    return g
 
 
 @dataclass(frozen=True)
@@ -148,7 +184,8 @@ class FilterRun:
     """Result of :meth:`run` over N samples: ``x`` (N, n) posterior means, ``P_diag``
     (N, n), ``y`` (N, q) / ``y_cov`` (N, q, q) output means / covariances (or None),
     ``nis`` (N,) normalized innovation squared (NaN when no channel was used),
-    ``n_used`` (N,) channels used, ``n_rejected`` non-finite channels dropped."""
+    ``n_used`` (N,) channels used (0 when gated), ``n_rejected`` non-finite channels
+    dropped, ``n_gated`` updates skipped by the innovation gate."""
 
     x: np.ndarray
     P_diag: np.ndarray
@@ -157,13 +194,19 @@ class FilterRun:
     nis: np.ndarray
     n_used: np.ndarray
     n_rejected: int
+    n_gated: int = 0
 
 
 class _StreamingFilter:
     """The common streaming interface (see the module docstring)."""
 
-    def __init__(self, R: np.ndarray, x0: np.ndarray, P0: np.ndarray) -> None:
+    def __init__(self, R: np.ndarray, x0: np.ndarray, P0: np.ndarray,
+                 gate_probability: float | None = None) -> None:
         self.R = np.asarray(R, dtype=float)
+        self.gate_probability = _check_gate(gate_probability)
+        self._gates: dict[int, float] = {}
+        self.n_gated = 0
+        self.last_gated = False
         self.x = np.array(x0, dtype=float)
         self.P = symmetrize(np.array(P0, dtype=float))
         n = self.x.shape[0]
@@ -187,14 +230,31 @@ class _StreamingFilter:
         finite = np.isfinite(z)
         self.n_rejected += int(np.count_nonzero(present & ~finite))
         sel = np.flatnonzero(present & finite)
-        self.last_n_used, self.last_nis = len(sel), float("nan")
+        self.last_n_used, self.last_nis, self.last_gated = len(sel), float("nan"), False
         if len(sel) == 0:
             return 0
         R_full = self.R if R is None else np.asarray(R, dtype=float)
         self._condition(z[sel], u, R_full[np.ix_(sel, sel)], sel)
+        if self.last_gated:
+            self.last_n_used = 0
+            return 0
         if not np.all(np.isfinite(self.x)):
             raise FilterDivergedError("state became non-finite after an update")
         return len(sel)
+
+    def _gate_passes(self, nis: float, dof: int) -> bool:
+        """Record the NIS; False (and count it) when the innovation gate rejects the update."""
+        self.last_nis = nis
+        if self.gate_probability is None:
+            return True
+        gate = self._gates.get(dof)
+        if gate is None:
+            gate = self._gates[dof] = nis_gate(self.gate_probability, dof)
+        if nis <= gate:
+            return True
+        self.n_gated += 1
+        self.last_gated = True
+        return False
 
     def run(self, zs: np.ndarray, us: np.ndarray | None = None, masks: np.ndarray | None = None,
             outputs: tuple[np.ndarray, np.ndarray | None] | None = None) -> FilterRun:
@@ -210,7 +270,7 @@ class _StreamingFilter:
             y, ycov = np.empty((N, C.shape[0])), np.empty((N, C.shape[0], C.shape[0]))
         with single_threaded_blas():
             self._run_loop(zs, us, masks_arr, outputs, xs, pd, nis, used, y, ycov)
-        return FilterRun(xs, pd, y, ycov, nis, used, self.n_rejected)
+        return FilterRun(xs, pd, y, ycov, nis, used, self.n_rejected, self.n_gated)
 
     def _run_loop(self, zs, us, masks_arr, outputs, xs, pd, nis, used, y, ycov) -> None:
         N = zs.shape[0]
@@ -231,8 +291,9 @@ class _StreamingFilter:
 class KalmanFilter(_StreamingFilter):
     """The exact linear Kalman filter (Joseph-form update) of a :class:`LinearGaussianModel`."""
 
-    def __init__(self, model: LinearGaussianModel, x0: np.ndarray, P0: np.ndarray) -> None:
-        super().__init__(model.R, x0, P0)
+    def __init__(self, model: LinearGaussianModel, x0: np.ndarray, P0: np.ndarray,
+                 gate_probability: float | None = None) -> None:
+        super().__init__(model.R, x0, P0, gate_probability)
         self.model = model
 
     def predict(self, u: np.ndarray | None = None) -> None:
@@ -247,11 +308,14 @@ class KalmanFilter(_StreamingFilter):
 
 
 def _joseph_update(f: _StreamingFilter, H: np.ndarray, y: np.ndarray, R: np.ndarray) -> None:
+    """1. S = H P H^T + R (Cholesky); 2. NIS = |L^-1 y|^2, gate; 3. K = P H^T S^-1;
+    4. x += K y; 5. Joseph form P = (I - K H) P (I - K H)^T + K R K^T."""
     PHt = f.P @ H.T
     L = cholesky(H @ PHt + R, "innovation covariance")
-    K = _solve_right(PHt, L)
     w = scipy.linalg.solve_triangular(L, y, lower=True, check_finite=False)
-    f.last_nis = float(w @ w)
+    if not f._gate_passes(float(w @ w), len(y)):
+        return
+    K = _solve_right(PHt, L)
     f.x = f.x + K @ y
     IKH = np.eye(len(f.x)) - K @ H
     f.P = symmetrize(IKH @ f.P @ IKH.T + K @ R @ K.T)
@@ -262,13 +326,16 @@ class ExtendedKalmanFilter(_StreamingFilter):
     ``H_jacobian(x, u)`` (p, n) evaluated at the current estimate."""
 
     def __init__(self, fx: Callable, F_jacobian: Callable, hx: Callable, H_jacobian: Callable,
-                 Q: np.ndarray, R: np.ndarray, x0: np.ndarray, P0: np.ndarray) -> None:
-        super().__init__(R, x0, P0)
+                 Q: np.ndarray, R: np.ndarray, x0: np.ndarray, P0: np.ndarray,
+                 gate_probability: float | None = None) -> None:
+        super().__init__(R, x0, P0, gate_probability)
         self.fx, self.F_jacobian, self.hx, self.H_jacobian, self.Q = fx, F_jacobian, hx, H_jacobian, Q
 
     @classmethod
-    def from_linear(cls, model: LinearGaussianModel, x0: np.ndarray, P0: np.ndarray) -> "ExtendedKalmanFilter":
-        return cls(model.fx, lambda x, u: model.F, model.hx, lambda x, u: model.H, model.Q, model.R, x0, P0)
+    def from_linear(cls, model: LinearGaussianModel, x0: np.ndarray, P0: np.ndarray,
+                    gate_probability: float | None = None) -> "ExtendedKalmanFilter":
+        return cls(model.fx, lambda x, u: model.F, model.hx, lambda x, u: model.H, model.Q, model.R, x0, P0,
+                   gate_probability)
 
     def predict(self, u: np.ndarray | None = None) -> None:
         F = self.F_jacobian(self.x, u)
@@ -289,8 +356,9 @@ class UnscentedKalmanFilter(_StreamingFilter):
     """
 
     def __init__(self, fx: Callable, hx: Callable, Q: np.ndarray, R: np.ndarray, x0: np.ndarray,
-                 P0: np.ndarray, alpha: float = 1e-3, beta: float = 2.0, kappa: float = 0.0) -> None:
-        super().__init__(R, x0, P0)
+                 P0: np.ndarray, alpha: float = 1e-3, beta: float = 2.0, kappa: float = 0.0,
+                 gate_probability: float | None = None) -> None:
+        super().__init__(R, x0, P0, gate_probability)
         if not alpha > 0:
             raise InputError(f"alpha: must be > 0, got {alpha!r}")
         self.fx, self.hx, self.Q = fx, hx, Q
@@ -299,8 +367,9 @@ class UnscentedKalmanFilter(_StreamingFilter):
 
     @classmethod
     def from_linear(cls, model: LinearGaussianModel, x0: np.ndarray, P0: np.ndarray, alpha: float = 1e-3,
-                    beta: float = 2.0, kappa: float = 0.0) -> "UnscentedKalmanFilter":
-        return cls(model.fx, model.hx, model.Q, model.R, x0, P0, alpha, beta, kappa)
+                    beta: float = 2.0, kappa: float = 0.0,
+                    gate_probability: float | None = None) -> "UnscentedKalmanFilter":
+        return cls(model.fx, model.hx, model.Q, model.R, x0, P0, alpha, beta, kappa, gate_probability)
 
     def sigma_points(self, x: np.ndarray, P: np.ndarray) -> np.ndarray:
         """Eq. 13: rows ``x, x + (sqrt((n+lambda) P))_i, x - (...)_i``; (2n+1, n)."""
@@ -327,9 +396,10 @@ class UnscentedKalmanFilter(_StreamingFilter):
         Pz = (dz.T * self.Wc) @ dz + R
         Pxz = (dx.T * self.Wc) @ dz
         L = cholesky(Pz, "innovation covariance")
-        K = _solve_right(Pxz, L)
         y = z - zp
         w = scipy.linalg.solve_triangular(L, y, lower=True, check_finite=False)
-        self.last_nis = float(w @ w)
+        if not self._gate_passes(float(w @ w), len(y)):
+            return
+        K = _solve_right(Pxz, L)
         self.x = self.x + K @ y
         self.P = symmetrize(self.P - K @ Pz @ K.T)

@@ -139,3 +139,31 @@ def test_numerical_core_imports_no_ros():
             "print(bad); sys.exit(1 if bad else 0)")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stdout + res.stderr
+
+
+@pytest.mark.parametrize("cls", [KalmanFilter, ExtendedKalmanFilter.from_linear, UnscentedKalmanFilter.from_linear])
+def test_gated_outlier_update_equals_skipping_that_sample_and_is_counted(cls):
+    model = _random_model(seed=11)
+    zs, us = _data(model, N=30, seed=12)
+    zs[10, 1] += 1e3  # a spike far outside any innovation covariance
+    skip = np.ones((30, 3), bool)
+    skip[10] = False
+    gated = cls(model, np.zeros(6), np.eye(6), gate_probability=0.9999).run(zs, us)
+    ref = cls(model, np.zeros(6), np.eye(6)).run(zs, us, masks=skip)
+    assert gated.n_gated == 1 and gated.n_used[10] == 0 and gated.nis[10] > 1e4
+    np.testing.assert_allclose(gated.x, ref.x, rtol=1e-9, atol=1e-12)
+    ungated = cls(model, np.zeros(6), np.eye(6)).run(zs, us)  # default: no gate
+    assert ungated.n_gated == 0 and ungated.n_used[10] == 3
+
+
+def test_generous_gate_rejects_about_its_tail_probability_on_consistent_data():
+    model = _random_model(seed=13)
+    zs, us = _data(model, N=1500, seed=14)
+    run = KalmanFilter(model, np.zeros(6), np.eye(6), gate_probability=0.99).run(zs, us)
+    assert 0 < run.n_gated < 40  # 1% of 1500 = 15 expected
+
+
+def test_gate_probability_outside_0_1_is_a_config_error():
+    from rotor_estimator.errors import ConfigError
+    with pytest.raises(ConfigError, match="gate_probability"):
+        KalmanFilter(_random_model(), np.zeros(6), np.eye(6), gate_probability=1.0)

@@ -152,3 +152,83 @@ def test_cli_reports_bad_input_with_exit_code_2(tmp_path, capsys):
     args = _parser().parse_args(["virtual-sensing", "--data", str(tmp_path / "bad.npz")])
     assert args.func(args) == 2
     assert "needs an array 't'" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- streaming pipeline
+def _stamped(ss, sim, t0_ns=1_700_000_000_000_000_000):
+    stamps = t0_ns + np.rint(sim.t * 1e9).astype(np.int64)
+    period = 2 * np.pi / ss.rotor.speed_rad_s * 1e9
+    pulses = t0_ns + np.rint(np.arange(int(sim.t[-1] * 1e9 / period) + 2) * period).astype(np.int64)
+    return stamps, pulses
+
+
+def _feed(pipe, ss, stamps, z, block=50, seed=0, keep=None):
+    rng = np.random.default_rng(seed)
+    outs = []
+    for i in range(0, len(stamps), block):
+        for j in rng.permutation(len(ss.rotor.sensors)):  # sensors arrive in any order
+            sel = np.arange(i, min(i + block, len(stamps)))
+            if keep is not None:
+                sel = sel[keep[sel]]
+            pipe.on_block(ss.rotor.sensors[j].name, stamps[sel], z[sel, 2 * j:2 * j + 2])
+        outs += pipe.process()
+    return outs + pipe.process(flush=True)
+
+
+def test_live_pipeline_on_shuffled_blocks_equals_offline_estimate_stations(rig):
+    """Same code path: the streaming pipeline (alignment, causal keyphasor fit, per-sample
+    step) gives the offline estimates; the only difference is the shaft angle's fit."""
+    from rotor_estimator.virtual_sensing import VirtualSensingPipeline
+    ss, sim = rig
+    stamps, pulses = _stamped(ss, sim)
+    pipe = VirtualSensingPipeline(ss)
+    for p in pulses:
+        pipe.on_pulse(int(p))
+    outs = _feed(pipe, ss, stamps[:600], sim.z[:600])
+    assert [o.stamp_ns for o in outs] == stamps[:600].tolist()
+    for i, e in enumerate(estimate_stations(ss, sim.t[:600], sim.z[:600], sim.u[:600])):
+        mean = np.array([o.mean[i] for o in outs])
+        std = np.array([o.std[i] for o in outs])
+        assert np.max(np.abs(mean - e.mean) / e.std) < 1e-4
+        np.testing.assert_allclose(std, e.std, rtol=1e-9)
+    st = pipe.status()
+    assert st.level == 0 and abs(pipe.nis_coverage - 0.95) < 0.04, st
+
+
+def test_pipeline_predicts_over_missing_samples_and_drops_late_ones(rig):
+    from rotor_estimator.virtual_sensing import PipelineOptions, VirtualSensingPipeline
+    ss, sim = rig
+    stamps, pulses = _stamped(ss, sim)
+    keep = np.ones(len(stamps), bool)
+    keep[100:104] = False
+    pipe = VirtualSensingPipeline(ss, options=PipelineOptions(publish_rate_hz=256.0))
+    for p in pulses:
+        pipe.on_pulse(int(p))
+    outs = _feed(pipe, ss, stamps[:400], sim.z[:400], keep=keep)
+    assert pipe.counters["samples_predicted_over"] == 4 and pipe.counters["samples_filtered"] == 396
+    assert [o.stamp_ns for o in outs][:3] == stamps[[0, 8, 16]].tolist()  # 2048 Hz decimated to 256 Hz
+    pipe.on_block("probe1", stamps[50:60], sim.z[50:60, :2])
+    assert pipe.aligner.counters["late_probe1"] == 10 and pipe.status().level == 1
+
+
+def test_samples_before_any_keyphasor_pulse_are_dropped_and_counted(rig):
+    from rotor_estimator.virtual_sensing import VirtualSensingPipeline
+    ss, sim = rig
+    stamps, pulses = _stamped(ss, sim)
+    pipe = VirtualSensingPipeline(ss)
+    outs = _feed(pipe, ss, stamps[:100], sim.z[:100])
+    assert outs == [] and pipe.counters["no_shaft_angle"] == 100
+    assert "waiting" in pipe.status().message
+
+
+def test_sensor_aligner_counts_duplicates_and_missing_sensors():
+    from rotor_estimator.virtual_sensing import SensorAligner
+    al = SensorAligner(["a", "b"], period_ns=1000.0, reorder_window_ns=5000)
+    al.add_block("a", np.arange(0, 10_000, 1000), np.zeros((10, 2)))
+    al.add_block("a", np.array([3000]), np.ones((1, 2)))  # duplicate: the first copy wins
+    al.add_block("b", np.arange(0, 10_000, 1000)[::2] + 100, np.ones((5, 2)))  # within tolerance
+    out = al.pop_ready()
+    assert out.stamps_ns.tolist() == [0, 1000, 2000, 3000, 4000]  # 9000 - 5000 is the horizon
+    assert out.present[:, 1].tolist() == [True, False, True, False, True]
+    assert al.counters["duplicate_a"] == 1 and al.counters["missing_b"] == 2
+    assert np.all(out.values[:, 0] == 0.0)
