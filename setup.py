@@ -22,8 +22,10 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/launch", glob.glob("launch/*.py")),
         (f"share/{PACKAGE}/config", glob.glob("config/*.yaml")),
-        (f"share/{PACKAGE}/bags", glob.glob("bags/**/*", recursive=True) and
-         [p for p in glob.glob("bags/*") if os.path.isfile(p)]),
+    ] + [
+        # every example bag folder keeps its layout under share/rotor_estimator/bags/
+        (f"share/{PACKAGE}/{folder}", [p for p in glob.glob(f"{folder}/*") if os.path.isfile(p)])
+        for folder in ["bags"] + sorted(d for d in glob.glob("bags/*") if os.path.isdir(d))
     ],
     install_requires=[
         "numpy>=1.24",

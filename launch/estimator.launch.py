@@ -1,0 +1,23 @@
+"""Launch the estimator node with config/estimator.yaml (override with params_file:=...).
+
+Needs a full ROS 2 install (launch, launch_ros); not used by the tests.
+"""
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+
+def generate_launch_description() -> LaunchDescription:
+    default_params = os.path.join(get_package_share_directory("rotor_estimator"), "config", "estimator.yaml")
+    return LaunchDescription([
+        DeclareLaunchArgument("params_file", default_value=default_params,
+                              description="estimator parameters (YAML, see config/estimator.yaml)"),
+        DeclareLaunchArgument("namespace", default_value="", description="namespace of the estimator node"),
+        Node(package="rotor_estimator", executable="estimator_node", name="rotor_estimator",
+             namespace=LaunchConfiguration("namespace"), parameters=[LaunchConfiguration("params_file")],
+             output="screen"),
+    ])

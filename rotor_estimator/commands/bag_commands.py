@@ -1,0 +1,322 @@
+"""Bag commands: ``replay``, ``simulate``, ``import`` and ``bench live``.
+
+``replay`` runs the estimator node's logic (:class:`~rotor_estimator.pipeline.EstimatorPipeline`
+after :func:`~rotor_estimator.nodes.io.feed_message`) over a bag message by message, with no
+ROS graph, and can write the node's output topics into a new MCAP bag. With ``passes: 2``
+in the rig file (the seed rig's setting) it runs the paper's multi-pass use: pass 2 starts
+from pass 1's final coefficients with the configured P0 and replays the same messages; only
+the last pass's outputs are written and printed.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import BagError, InputError
+
+#: A coefficient whose std exceeds this fraction of its magnitude is reported as not determined.
+NOT_DETERMINED_FRACTION = 0.25
+
+
+# ---------------------------------------------------------------------------------- replay
+def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str | Path | None = None, *,
+               progress: bool = True, publish_period_s: float = 0.05) -> dict[str, Any]:
+    """Replay ``bag`` through the pipeline (``passes`` from the rig file); return the summary dict."""
+    from tqdm import tqdm
+
+    import msg_adapters as ma
+
+    from ..alignment import AlignmentConfig
+    from ..bagio import OutputBagWriter, bag_topics, iter_bag_messages
+    from ..config import COEFFICIENT_NAMES, COEFFICIENT_UNITS, load_rig_file
+    from ..nodes.io import feed_message, output_messages, stream_by_topic
+    from ..pipeline import EstimatorPipeline
+
+    rig_file = load_rig_file(rig_path)
+    topics = ma.DEFAULT_INPUT_TOPICS
+    available = bag_topics(bag)
+    missing = [t for t in (topics.probe1, topics.probe2, topics.keyphasor) if t not in available]
+    if missing:
+        raise BagError(f"bag {bag} lacks input topic(s) {missing}; it has {sorted(available)}")
+    if out_bag is not None and Path(out_bag).exists():
+        raise BagError(f"output bag {out_bag} already exists; remove it or choose another path")
+    streams = stream_by_topic(topics)
+    passes = rig_file.estimator.passes
+    initial = None
+    written = 0
+    final = None
+    for k in range(passes):
+        pipe = EstimatorPipeline(rig_file.rig, rig_file.estimator, None,
+                                 AlignmentConfig(sample_rate_hz=rig_file.rig.sample_rate_hz), publish_period_s,
+                                 initial_coefficients=initial)
+        last = k == passes - 1
+        writer = OutputBagWriter(out_bag).open() if (last and out_bag is not None) else None
+        try:
+            with tqdm(desc=f"replay pass {k + 1}/{passes}", unit="msg", file=sys.stderr, disable=not progress,
+                      leave=False) as bar:
+                for m in iter_bag_messages(bag, list(streams)):
+                    feed_message(pipe, streams[m.topic], m.msg)
+                    outs = pipe.process()
+                    if writer is not None:
+                        written += _write(writer, outs, output_messages, rig_file.rig.name)
+                    bar.update()
+                outs = pipe.flush()
+                if writer is not None:
+                    written += _write(writer, outs, output_messages, rig_file.rig.name)
+        finally:
+            if writer is not None:
+                writer.close()
+        if not outs:
+            raise InputError(f"bag {bag}: no probe sample could be filtered "
+                             f"({pipe.accounting().summary()}); check the topics and keyphasor pulses")
+        final = outs[-1]
+        initial = final.coefficients
+    acc = pipe.accounting()
+    coefficients = {}
+    not_determined = []
+    for name, unit, mean, std in zip(COEFFICIENT_NAMES, COEFFICIENT_UNITS, final.coefficients, final.std):
+        coefficients[name] = {"mean": float(mean), "std": float(std), "unit": unit}
+        if not std <= NOT_DETERMINED_FRACTION * abs(mean):
+            not_determined.append(name)
+    summary = acc.summary()
+    samples = {"processed": summary["processed"], "rejected": summary["rejected"],
+               **{k: v for k, v in summary.items() if k not in ("processed", "rejected")}}
+    d = final.diagnostics
+    return {"bag": str(bag), "rig": rig_file.rig.name, "passes": passes, "stamp_ns": final.stamp_ns,
+            "coefficients": coefficients, "not_determined": not_determined, "samples": samples,
+            "accounting_balanced": acc.balanced(), "pulses": dict(acc.pulses),
+            "status": {"level": d.level, "message": d.message, "converged": d.converged,
+                       "nis_window_mean": d.nis_window_mean, "divergence_recoveries": d.divergence_recoveries},
+            "out": str(out_bag) if out_bag is not None else None, "outputs_written": written}
+
+
+def _write(writer, outs, output_messages, hardware_id: str) -> int:
+    for out in outs:
+        for topic, msg in output_messages(writer.factory, out, hardware_id=hardware_id):
+            writer.write(topic, msg, out.stamp_ns)
+    return len(outs)
+
+
+def format_replay(r: dict[str, Any]) -> str:
+    lines = [f"bag {r['bag']} (rig {r['rig']}, {r['passes']} pass{'es' if r['passes'] > 1 else ''}); "
+             f"estimate at stamp {r['stamp_ns']} ns", "",
+             f"  {'':4} {'estimate':>14} {'std':>12}  unit"]
+    for name, c in r["coefficients"].items():
+        flag = "  NOT DETERMINED (std > 25% of |estimate|)" if name in r["not_determined"] else ""
+        lines.append(f"  {name:4} {c['mean']:14.6g} {c['std']:12.4g}  {c['unit']}{flag}")
+    s = r["samples"]
+    reasons = {k: v for k, v in s.items() if v and k not in ("processed", "rejected") and not
+               k.startswith(("received", "pending", "reordered"))}
+    lines += ["", f"samples: {s['processed']} processed, {s['rejected']} rejected"
+              + (f" ({', '.join(f'{k} {v}' for k, v in reasons.items())})" if reasons else ""),
+              f"status: {r['status']['message']}"]
+    if r["out"]:
+        lines.append(f"outputs: {r['outputs_written']} estimates written to {r['out']}")
+    return "\n".join(lines)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    result = replay_bag(args.bag, args.rig, args.out, progress=not args.no_progress)
+    print(json.dumps(result, indent=1) if args.json else format_replay(result))
+    return 0
+
+
+# ---------------------------------------------------------------------------------- simulate
+def cmd_simulate(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from ..bagio import write_input_bag
+    from ..config import load_rig_file
+    from ..simulator import paper_scenario, simulate
+
+    rig = load_rig_file(args.rig).rig
+    scenario = paper_scenario(args.scenario)
+    if args.duration is not None:
+        scenario = dataclasses.replace(scenario, duration_s=float(args.duration))
+    if Path(args.out).exists():
+        raise BagError(f"bag {args.out} already exists; remove it or choose another output path")
+    rec = simulate(rig, scenario, seed=args.seed).recording
+    rec.meta.update({"command": "rotor-estimator simulate", "duration_s": scenario.duration_s})
+    write_input_bag(args.out, rec, block_size=args.block_size)
+    print(f"wrote {args.out}: {len(rec)} samples per probe plane at {rig.sample_rate_hz:g} Hz, "
+          f"{rec.pulse_stamps_ns.size} keyphasor pulses, scenario {args.scenario}, seed {args.seed}")
+    return 0
+
+
+# ---------------------------------------------------------------------------------- import
+_SIGNAL_COLUMNS = ("t", "xp1", "yp1", "xp2", "yp2")
+_IMPACT_COLUMNS = ("impact_fx", "impact_fy")
+
+
+def read_columns(path: str | Path, what: str) -> dict[str, np.ndarray]:
+    """Columns of a CSV file (header row) or an NPZ archive, by lower-case name, as float arrays."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{what} file {p} not found")
+    if p.suffix.lower() == ".npz":
+        try:
+            with np.load(p, allow_pickle=False) as data:
+                return {k.strip().lower(): np.asarray(data[k], dtype=float).reshape(-1) for k in data.files}
+        except (ValueError, OSError) as exc:
+            raise InputError(f"{what} file {p}: not a readable NPZ archive ({exc})") from exc
+    try:
+        with open(p, newline="") as fh:
+            header = fh.readline()
+            names = [h.strip().strip('"').lower() for h in header.split(",")]
+            if not header.strip() or any(not n for n in names):
+                raise InputError(f"{what} file {p}: the first line must be a header of column names, got "
+                                 f"{header.strip()!r}")
+            table = np.genfromtxt(fh, delimiter=",", dtype=float, ndmin=2, invalid_raise=True,
+                                  missing_values=("", "nan", "NaN"), filling_values=np.nan)
+    except ValueError as exc:
+        raise InputError(f"{what} file {p}: not a numeric CSV table ({exc})") from exc
+    if table.size == 0:
+        raise InputError(f"{what} file {p}: no data rows")
+    if table.shape[1] != len(names):
+        raise InputError(f"{what} file {p}: {len(names)} header names but {table.shape[1]} columns")
+    return {n: table[:, i] for i, n in enumerate(names)}
+
+
+def recording_from_columns(cols: dict[str, np.ndarray], pulse_times_s: np.ndarray | None,
+                           source: str = "signals") -> tuple[Any, list[str]]:
+    """Validate imported columns and build a RigRecording; return it and the warnings."""
+    from ..recording import RigRecording
+
+    missing = [c for c in _SIGNAL_COLUMNS if c not in cols]
+    if missing:
+        raise InputError(f"{source}: missing column(s) {missing}; found {sorted(cols)}. Expected t (s), "
+                         f"xp1, yp1, xp2, yp2 (m) and optionally impact_fx, impact_fy (N)")
+    if (_IMPACT_COLUMNS[0] in cols) != (_IMPACT_COLUMNS[1] in cols):
+        raise InputError(f"{source}: give both impact_fx and impact_fy (N) or neither")
+    t = cols["t"]
+    n = t.size
+    for c in (*_SIGNAL_COLUMNS, *_IMPACT_COLUMNS):
+        if c in cols and cols[c].size != n:
+            raise InputError(f"{source}: column {c} has {cols[c].size} values, t has {n}")
+    if n < 2:
+        raise InputError(f"{source}: needs at least 2 samples, got {n}")
+    if not np.all(np.isfinite(t)):
+        bad = np.flatnonzero(~np.isfinite(t))
+        raise InputError(f"{source}: t has {bad.size} NaN/inf value(s) (first at row {int(bad[0])}); "
+                         f"every sample needs a time")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        i = int(np.argmax(steps <= 0)) + 1
+        raise InputError(f"{source}: t must increase strictly; row {i} has t = {t[i]!r} s after {t[i - 1]!r} s")
+    if t[0] < 0:
+        raise InputError(f"{source}: t must be >= 0 s (bag log times are unsigned), first t = {t[0]!r}")
+    warnings = []
+    probes = np.column_stack([cols[c] for c in _SIGNAL_COLUMNS[1:]])
+    for j, c in enumerate(_SIGNAL_COLUMNS[1:]):
+        bad = int((~np.isfinite(probes[:, j])).sum())
+        if bad:
+            warnings.append(f"{c}: {bad} NaN/inf value(s) kept; the estimator rejects those samples (non_finite)")
+    finite = probes[np.isfinite(probes)]
+    if finite.size and np.max(np.abs(finite)) > 0.01:
+        warnings.append(f"probe values up to {np.max(np.abs(finite)):.4g} m: more than 10 mm, probably in um or "
+                        f"mm; probe columns must be in metres")
+    if np.max(steps) > 1.5 * np.median(steps):
+        warnings.append(f"t is not evenly sampled (median step {np.median(steps):.6g} s, largest "
+                        f"{np.max(steps):.6g} s): gaps are predicted across")
+    force = np.zeros((n, 2))
+    if _IMPACT_COLUMNS[0] in cols:
+        force = np.column_stack([cols[c] for c in _IMPACT_COLUMNS])
+        bad = ~np.isfinite(force)
+        if bad.any():
+            warnings.append(f"impact force: {int(bad.any(axis=1).sum())} NaN/inf row(s) read as 0 N")
+            force[bad] = 0.0
+    stamps = np.round(t * 1e9).astype(np.int64)
+    pulses = np.zeros(0, dtype=np.int64)
+    if pulse_times_s is None:
+        warnings.append("no keyphasor pulses (--tach): the estimator cannot phase the imbalance force and will "
+                        "reject every sample (no_shaft_reference)")
+    else:
+        pt = np.asarray(pulse_times_s, dtype=float)
+        if not np.all(np.isfinite(pt)):
+            warnings.append(f"pulse_times: {int((~np.isfinite(pt)).sum())} NaN/inf value(s) dropped")
+            pt = pt[np.isfinite(pt)]
+        if np.any(pt < 0):
+            raise InputError("pulse_times must be >= 0 s (same clock as t)")
+        pulses = np.unique(np.round(pt * 1e9).astype(np.int64))
+    rec = RigRecording(stamps, probes, pulses, force, {"source": source})
+    return rec, warnings
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    from ..bagio import write_input_bag
+
+    if Path(args.out).exists():
+        raise BagError(f"bag {args.out} already exists; remove it or choose another output path")
+    cols = read_columns(args.signals, "SIGNALS")
+    pulses = None
+    if args.tach is not None:
+        tcols = read_columns(args.tach, "PULSES")
+        if "pulse_times" not in tcols:
+            raise InputError(f"PULSES file {args.tach}: missing column pulse_times (s); found {sorted(tcols)}")
+        pulses = tcols["pulse_times"]
+    rec, warnings = recording_from_columns(cols, pulses, str(args.signals))
+    for w in warnings:
+        print(f"rotor-estimator import: warning: {w}", file=sys.stderr)
+    write_input_bag(args.out, rec, block_size=args.block_size)
+    print(f"wrote {args.out}: {len(rec)} samples, {rec.pulse_stamps_ns.size} keyphasor pulses, "
+          f"{int(np.any(rec.impact_force_n != 0, axis=1).sum())} samples with impact force")
+    return 0
+
+
+# ---------------------------------------------------------------------------------- bench
+def cmd_bench_live(args: argparse.Namespace) -> int:
+    try:
+        from ..nodes.bench_live import format_result, run
+    except ImportError as exc:
+        from ..errors import RotorEstimatorError
+
+        raise RotorEstimatorError(f"bench live needs rclpy ({exc}); install the 'ros' extra or source ROS 2") from exc
+    result = run(step_s=args.step_s, rates_hz=tuple(args.rates), progress=not args.json)
+    print(json.dumps(result, indent=1) if args.json else format_result(result))
+    return 0
+
+
+# ---------------------------------------------------------------------------------- parsers
+def add_parsers(subparsers: Any) -> None:
+    p = subparsers.add_parser("replay", help="run the estimator node's logic over a bag (no ROS graph)")
+    p.add_argument("bag", type=Path, help="rosbag2 directory or .mcap file with the input topics")
+    p.add_argument("--rig", type=Path, default=None, help="rig YAML (default: the bundled seed rig)")
+    p.add_argument("--out", type=Path, default=None, help="write the node's output topics to this new MCAP bag")
+    p.add_argument("--json", action="store_true", help="print JSON (SI units)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_replay)
+
+    p = subparsers.add_parser("simulate", help="write simulated input topics to an MCAP bag")
+    p.add_argument("--rig", type=Path, default=None, help="rig YAML (default: the bundled seed rig)")
+    p.add_argument("--scenario", choices=["imbalance+impact", "imbalance"], default="imbalance+impact",
+                   help="Miller & Howard's cases (default imbalance+impact)")
+    p.add_argument("--duration", type=float, default=None,
+                   help="simulated time from rest, s (default 0.125, the paper's; the first 0.03 s are dropped)")
+    p.add_argument("--seed", type=int, default=1, help="noise seed (default 1)")
+    p.add_argument("--block-size", type=int, default=200, help="samples per probe message (default 200)")
+    p.add_argument("--out", type=Path, required=True, help="new bag directory")
+    p.set_defaults(func=cmd_simulate)
+
+    p = subparsers.add_parser("import", help="convert DAQ signals (CSV/NPZ) to an input bag")
+    p.add_argument("signals", type=Path, metavar="SIGNALS",
+                   help="CSV (header row) or NPZ with t (s), xp1, yp1, xp2, yp2 (m), optional impact_fx, "
+                        "impact_fy (N)")
+    p.add_argument("--tach", type=Path, default=None, metavar="PULSES",
+                   help="CSV or NPZ with pulse_times (s, same clock as t)")
+    p.add_argument("--block-size", type=int, default=200, help="samples per probe message (default 200)")
+    p.add_argument("--out", type=Path, required=True, help="new bag directory")
+    p.set_defaults(func=cmd_import)
+
+
+def add_bench_parsers(bench_subparsers: Any) -> None:
+    b = bench_subparsers.add_parser("live", help="live rclpy throughput and latency (publisher + estimator node)")
+    b.add_argument("--json", action="store_true")
+    b.add_argument("--step-s", type=float, default=3.0, help="seconds per rate step (default 3)")
+    b.add_argument("--rates", type=float, nargs="+", default=[5000.0, 10000.0, 20000.0, 40000.0, 80000.0],
+                   help="probe sample rates per plane to try, Hz (200-sample blocks)")
+    b.set_defaults(func=cmd_bench_live)
