@@ -47,7 +47,8 @@ class RclpyFactory:
     def __init__(self) -> None:
         self._classes: dict[str, type] = {}
 
-    def _cls(self, typename: str) -> type:
+    def message_class(self, typename: str) -> type:
+        """The rclpy message class for ``'pkg/msg/Name'`` (for publishers and subscriptions)."""
         cls = self._classes.get(typename)
         if cls is None:
             pkg, kind, name = typename.split("/")
@@ -56,7 +57,7 @@ class RclpyFactory:
         return cls
 
     def new(self, typename: str, /, **fields: Any) -> Any:
-        return self._cls(typename)(**fields)
+        return self.message_class(typename)(**fields)
 
     def uint8_seq(self, data: np.ndarray) -> Any:
         return np.ascontiguousarray(data, dtype=np.uint8).tobytes()

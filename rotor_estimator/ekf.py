@@ -152,6 +152,21 @@ class StreamingEKF:
             "sstd": np.zeros((1, 4)),
         }
 
+    def restart_motion(self) -> bool:
+        """After a gap too long to predict across: forget the motion states (their P0 again, no
+        correlation with the coefficients) and re-initialize them from the next sample.
+
+        The coefficients and their covariance are kept. Returns False when not yet initialized.
+        """
+        if not self.initialized:
+            return False
+        p0 = initial_covariance(self.config)
+        self.P[:8, :] = 0.0
+        self.P[:, :8] = 0.0
+        self.P[:8, :8] = p0[:8, :8]
+        self.t_s = None
+        return True
+
     @property
     def initialized(self) -> bool:
         return self.t_s is not None

@@ -42,7 +42,7 @@ import numpy as np
 from . import ekf_kernel as kern
 from .alignment import AlignedBlock, AlignmentConfig, SampleAligner
 from .config import COEFFICIENT_NAMES, EstimatorConfig, RigConfig
-from .ekf import StreamingEKF, initial_covariance
+from .ekf import StreamingEKF
 from .errors import ConfigError, InputError
 from .tachometer import ShaftAngleTracker, TachometerConfig
 
@@ -324,15 +324,8 @@ class EstimatorPipeline:
 
     def _restart_motion(self) -> None:
         """Re-initialize displacements from the next sample; keep coefficients and their covariance."""
-        ekf = self.ekf
-        if not ekf.initialized:
-            return
-        p0 = initial_covariance(self.estimator_config)
-        ekf.P[:8, :] = 0.0
-        ekf.P[:, :8] = 0.0
-        ekf.P[:8, :8] = p0[:8, :8]
-        ekf.t_s = None
-        self._events["motion_restarts"] += 1
+        if self.ekf.restart_motion():
+            self._events["motion_restarts"] += 1
 
     # ----------------------------------------------------------------- inputs
     def on_probe_block(self, plane: int, stamps_ns: np.ndarray, xy_m: np.ndarray, arrival_ns: int | None = None) -> None:

@@ -124,20 +124,20 @@ def run(step_s: float = 3.0, rates_hz: tuple[float, ...] = (5e3, 1e4, 2e4, 4e4, 
         bench_node = rclpy.create_node("rotor_bench", context=ctx)
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
         fac = ma.RclpyFactory()
-        pubs = {1: bench_node.create_publisher(fac._cls("sensor_msgs/msg/PointCloud2"), est.topics.probe1, qos),
-                2: bench_node.create_publisher(fac._cls("sensor_msgs/msg/PointCloud2"), est.topics.probe2, qos),
-                0: bench_node.create_publisher(fac._cls("sensor_msgs/msg/TimeReference"), est.topics.keyphasor, qos)}
+        pubs = {1: bench_node.create_publisher(fac.message_class("sensor_msgs/msg/PointCloud2"), est.topics.probe1, qos),
+                2: bench_node.create_publisher(fac.message_class("sensor_msgs/msg/PointCloud2"), est.topics.probe2, qos),
+                0: bench_node.create_publisher(fac.message_class("sensor_msgs/msg/TimeReference"), est.topics.keyphasor, qos)}
         state: dict[str, list] = {"received": [], "diag": []}
         clock = bench_node.get_clock()
         bench_node.create_subscription(
-            fac._cls("sensor_msgs/msg/JointState"), ma.output_topic(ma.COEFFICIENTS_TOPIC, est.get_fully_qualified_name()),
+            fac.message_class("sensor_msgs/msg/JointState"), ma.output_topic(ma.COEFFICIENTS_TOPIC, est.get_fully_qualified_name()),
             lambda m: state["received"].append((clock.now().nanoseconds, ma.stamp_to_ns(m.header.stamp))), 1000)
 
         def on_diag(m: Any) -> None:
             for s in ma.diagnostics_from_msg(m).statuses:
                 state["diag"].append((s.level, s.values.get("falling_behind") == "true"))
 
-        bench_node.create_subscription(fac._cls("diagnostic_msgs/msg/DiagnosticArray"), ma.DIAGNOSTICS_TOPIC,
+        bench_node.create_subscription(fac.message_class("diagnostic_msgs/msg/DiagnosticArray"), ma.DIAGNOSTICS_TOPIC,
                                        on_diag, 100)
         for node in (est, bench_node):
             ex = SingleThreadedExecutor(context=ctx)

@@ -195,8 +195,8 @@ class EstimatorNode(Node):
         self._pubs = {}
         for name in (ma.COEFFICIENTS_TOPIC, ma.COVARIANCE_TOPIC, ma.INNOVATION_TOPIC, ma.NIS_TOPIC, ma.SHAFT_TOPIC):
             topic = ma.output_topic(name, self._namespace)
-            self._pubs[topic] = self.create_publisher(self._factory._cls("sensor_msgs/msg/JointState"), topic, 50)
-        self._diag_pub = self.create_publisher(self._factory._cls("diagnostic_msgs/msg/DiagnosticArray"),
+            self._pubs[topic] = self.create_publisher(self._factory.message_class("sensor_msgs/msg/JointState"), topic, 50)
+        self._diag_pub = self.create_publisher(self._factory.message_class("diagnostic_msgs/msg/DiagnosticArray"),
                                                ma.DIAGNOSTICS_TOPIC, 10)
         from std_srvs.srv import Trigger
 
@@ -227,7 +227,7 @@ class EstimatorNode(Node):
         if old is not None:
             self.destroy_subscription(old[1])
         topic = getattr(self.topics, stream)
-        sub = self.create_subscription(self._factory._cls(typename), topic,
+        sub = self.create_subscription(self._factory.message_class(typename), topic,
                                        lambda msg, s=stream: self._on_input(s, msg), self._input_qos)
         self._subs[stream] = (typename, sub)
 

@@ -149,7 +149,7 @@ def bag_events(path: str | Path, topics: ma.InputTopics, start_offset_s: float) 
     for log_ns, stream, typename, msg in msgs:
         if log_ns - first < offset:
             continue
-        cls = cls_cache.setdefault(typename, fac._cls(typename))
+        cls = cls_cache.setdefault(typename, fac.message_class(typename))
 
         def make(shift: int, msg=msg, typename=typename, cls=cls) -> Any:
             m = _shift_stamps(msg, shift) if shift else msg

@@ -151,7 +151,7 @@ class VirtualSensingNode(Node):
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=int(values["input_queue_depth"]),
                          reliability=qos_profile_sensor_data.reliability,
                          durability=qos_profile_sensor_data.durability)
-        cloud = self._factory._cls("sensor_msgs/msg/PointCloud2")
+        cloud = self._factory.message_class("sensor_msgs/msg/PointCloud2")
         prefix = values["sensor_topic_prefix"] or ma.SENSOR_TOPIC_PREFIX
         self.undecodable: dict[str, int] = {}
         for s in rotor.sensors:
@@ -160,12 +160,12 @@ class VirtualSensingNode(Node):
                                      lambda msg, name=s.name, kind=s.kind: self._on_block(name, kind, msg), qos)
         if values["keyphasor_topic"]:
             self.undecodable["keyphasor"] = 0
-            self.create_subscription(self._factory._cls("sensor_msgs/msg/TimeReference"), values["keyphasor_topic"],
+            self.create_subscription(self._factory.message_class("sensor_msgs/msg/TimeReference"), values["keyphasor_topic"],
                                      self._on_pulse, QoSProfile(depth=100))
-        joint = self._factory._cls("sensor_msgs/msg/JointState")
+        joint = self._factory.message_class("sensor_msgs/msg/JointState")
         self._pubs = {name: self.create_publisher(joint, f"~/{ma.STATIONS_TOPIC}/{name}", 100)
                       for name, _ in self.pipeline.stations}
-        self._diag_pub = self.create_publisher(self._factory._cls("diagnostic_msgs/msg/DiagnosticArray"),
+        self._diag_pub = self.create_publisher(self._factory.message_class("diagnostic_msgs/msg/DiagnosticArray"),
                                                ma.DIAGNOSTICS_TOPIC, 10)
         self._idle_ns = int(float(values["idle_release_s"]) * 1e9)
         self._last_input_ns = 0
