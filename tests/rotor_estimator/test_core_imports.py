@@ -6,7 +6,10 @@ CORE_MODULES = [
     "rotor_estimator.config", "rotor_estimator.model", "rotor_estimator.simulator", "rotor_estimator.ekf",
     "rotor_estimator.ekf_kernel", "rotor_estimator.ekf_reference", "rotor_estimator.crlb",
     "rotor_estimator.offline", "rotor_estimator.reproduce", "rotor_estimator.tachometer",
-    "rotor_estimator.alignment", "rotor_estimator.recording",
+    "rotor_estimator.alignment", "rotor_estimator.recording", "rotor_estimator.pipeline",
+    "rotor_estimator.linear_filters", "rotor_estimator.virtual_sensing", "rotor_estimator.flexible",
+    "rotor_estimator.identification.methods", "rotor_estimator.identification.planner",
+    "rotor_estimator.identification.identifiability", "rotor_estimator.diagnosis",
 ]
 
 
