@@ -12,8 +12,9 @@ from .factory import MessageFactory, RclpyFactory, TypestoreFactory, default_typ
 from .inputs import (IMPACT_FIELDS, IMPACT_TYPES, PROBE_FIELDS, PROBE_TYPES, PULSE_TYPES, impact_block_from_msg,
                      impact_block_to_msg, impact_sample_to_msg, probe_block_from_msg, probe_block_to_msg,
                      probe_sample_to_msg, pulse_stamp_from_msg, pulse_to_msg)
-from .outputs import (COVARIANCE_NAMES, INNOVATION_NAMES, NIS_NAMES, SHAFT_NAMES, Coefficients, Covariance,
-                      DiagnosticRecord, Diagnostics, Innovation, Nis, Shaft, coefficients_from_msg,
+from .outputs import (COVARIANCE_NAMES, IDENTIFIABILITY_STATUS, INNOVATION_NAMES, NIS_NAMES, SHAFT_NAMES,
+                      Coefficients, Covariance, DiagnosticRecord, Diagnostics, Identifiability, Innovation, Nis,
+                      Shaft, coefficients_from_msg, identifiability_from_msg, identifiability_to_msg,
                       coefficients_to_msg, covariance_from_msg, covariance_to_msg, diagnostics_from_msg,
                       diagnostics_to_msg, innovation_from_msg, innovation_to_msg, nis_from_msg, nis_to_msg,
                       shaft_from_msg, shaft_to_msg)
@@ -21,7 +22,8 @@ from .stations import (ACCEL_FIELDS, SENSOR_FIELDS, SENSOR_TOPIC_PREFIX, STATION
                        VIRTUAL_SENSING_NAMESPACE, StationState, sensor_block_from_msg, sensor_block_to_msg,
                        sensor_topic, station_from_msg, station_to_msg, station_topic)
 from .topics import (COEFFICIENTS_TOPIC, COVARIANCE_TOPIC, DEFAULT_INPUT_TOPICS, DEFAULT_NAMESPACE,
-                     DIAGNOSTICS_TOPIC, INNOVATION_TOPIC, NIS_TOPIC, SHAFT_TOPIC, InputTopics, output_topic)
+                     DIAGNOSTICS_TOPIC, IDENTIFIABILITY_TOPIC, INNOVATION_TOPIC, NIS_TOPIC, SHAFT_TOPIC, InputTopics,
+                     output_topic)
 
 __all__ = [
     "COEFFICIENTS_TOPIC", "COVARIANCE_NAMES", "COVARIANCE_TOPIC", "DEFAULT_INPUT_TOPICS", "DEFAULT_NAMESPACE",
@@ -36,6 +38,8 @@ __all__ = [
     "nis_from_msg", "nis_to_msg", "ns_to_sec_nanosec", "output_topic", "probe_block_from_msg",
     "probe_block_to_msg", "probe_sample_to_msg", "pulse_stamp_from_msg", "pulse_to_msg",
     "shaft_from_msg", "shaft_to_msg", "stamp_to_ns",
+    "IDENTIFIABILITY_STATUS", "IDENTIFIABILITY_TOPIC", "Identifiability", "identifiability_from_msg",
+    "identifiability_to_msg",
     # virtual sensing (msg_adapters.stations)
     "ACCEL_FIELDS", "SENSOR_FIELDS", "SENSOR_TOPIC_PREFIX", "STATION_NAMES", "STATIONS_TOPIC",
     "VIRTUAL_SENSING_NAMESPACE", "StationState",

@@ -8,6 +8,10 @@ the order of entries. Stamps are integer ns (``header.stamp``).
 * ``~/innovation``: name = ``xp1_m yp1_m xp2_m yp2_m``, position = y = z - h(x), velocity = sqrt(diag S).
 * ``~/nis``: name = ``nis nis_window_mean nis_dof``.
 * ``~/shaft``: name = ``speed_rad_s angle_rad``.
+* ``~/identifiability``: name = ``COEFFICIENT_NAMES_WITH_UNITS``; position = estimate, NaN when the
+  data do not determine it; velocity = predicted std from the information in the data alone
+  (the Cramer-Rao bound, prior removed); effort = status code (0 determined, 1 weakly
+  determined, 2 not determined; see ``IDENTIFIABILITY_STATUS``).
 * ``/diagnostics``: ``diagnostic_msgs/msg/DiagnosticArray``.
 """
 from __future__ import annotations
@@ -30,6 +34,8 @@ COVARIANCE_NAMES: tuple[str, ...] = tuple(
 INNOVATION_NAMES: tuple[str, ...] = ("xp1_m", "yp1_m", "xp2_m", "yp2_m")
 NIS_NAMES: tuple[str, ...] = ("nis", "nis_window_mean", "nis_dof")
 SHAFT_NAMES: tuple[str, ...] = ("speed_rad_s", "angle_rad")
+#: Status codes carried in ``~/identifiability`` ``effort``.
+IDENTIFIABILITY_STATUS: tuple[str, ...] = ("determined", "weakly determined", "not determined")
 _N_COEF = len(COEFFICIENT_NAMES_WITH_UNITS)
 
 
@@ -63,6 +69,13 @@ class Shaft(NamedTuple):
     angle_rad: float
 
 
+class Identifiability(NamedTuple):
+    stamp_ns: int
+    estimate: np.ndarray        #: (8,) NaN where not determined
+    predicted_std: np.ndarray   #: (8,) from the data's information alone
+    status: tuple[str, ...]     #: one of IDENTIFIABILITY_STATUS per coefficient
+
+
 @dataclass(frozen=True)
 class DiagnosticRecord:
     """One ``diagnostic_msgs/msg/DiagnosticStatus``; level 0 OK, 1 WARN, 2 ERROR, 3 STALE."""
@@ -81,16 +94,19 @@ class Diagnostics(NamedTuple):
 
 # --------------------------------------------------------------------------- JointState helpers
 def _joint_state(factory: MessageFactory, stamp_ns: int, names: Sequence[str], position: Any,
-                 velocity: Any | None, frame_id: str) -> Any:
+                 velocity: Any | None, frame_id: str, effort: Any | None = None) -> Any:
     position = np.asarray(position, dtype=np.float64).reshape(-1)
     if position.size != len(names):
         raise InputError(f"JointState position needs {len(names)} values, got {position.size}")
     vel = np.empty(0) if velocity is None else np.asarray(velocity, dtype=np.float64).reshape(-1)
     if velocity is not None and vel.size != len(names):
         raise InputError(f"JointState velocity needs {len(names)} values, got {vel.size}")
+    eff = np.empty(0) if effort is None else np.asarray(effort, dtype=np.float64).reshape(-1)
+    if effort is not None and eff.size != len(names):
+        raise InputError(f"JointState effort needs {len(names)} values, got {eff.size}")
     return factory.new(JOINT_STATE, header=make_header(factory, stamp_ns, frame_id), name=list(names),
                        position=factory.float64_seq(position), velocity=factory.float64_seq(vel),
-                       effort=factory.float64_seq(np.empty(0)))
+                       effort=factory.float64_seq(eff))
 
 
 def _joint_values(msg: Any, names: Sequence[str], what: str) -> tuple[int, np.ndarray, np.ndarray]:
@@ -142,6 +158,16 @@ def shaft_to_msg(factory: MessageFactory, stamp_ns: int, speed_rad_s: float, ang
     return _joint_state(factory, stamp_ns, SHAFT_NAMES, [speed_rad_s, angle_rad], None, frame_id)
 
 
+def identifiability_to_msg(factory: MessageFactory, stamp_ns: int, estimate: Any, predicted_std: Any,
+                           status: Sequence[str], *, frame_id: str = "") -> Any:
+    """``~/identifiability``: estimate (NaN when not determined), predicted std, status code in effort."""
+    try:
+        codes = [IDENTIFIABILITY_STATUS.index(s) for s in status]
+    except ValueError as exc:
+        raise InputError(f"identifiability status must be one of {IDENTIFIABILITY_STATUS}") from exc
+    return _joint_state(factory, stamp_ns, COEFFICIENT_NAMES_WITH_UNITS, estimate, predicted_std, frame_id, codes)
+
+
 def diagnostics_to_msg(factory: MessageFactory, stamp_ns: int, statuses: Sequence[DiagnosticRecord]) -> Any:
     """``/diagnostics``: one DiagnosticStatus per record, values as KeyValue strings."""
     status = [factory.new("diagnostic_msgs/msg/DiagnosticStatus", level=factory.byte(s.level), name=s.name,
@@ -179,6 +205,19 @@ def shaft_from_msg(msg: Any) -> Shaft:
     """Decode ``~/shaft``."""
     stamp_ns, pos, _ = _joint_values(msg, SHAFT_NAMES, "shaft message")
     return Shaft(stamp_ns, float(pos[0]), float(pos[1]))
+
+
+def identifiability_from_msg(msg: Any) -> Identifiability:
+    """Decode ``~/identifiability``."""
+    stamp_ns, pos, vel = _joint_values(msg, COEFFICIENT_NAMES_WITH_UNITS, "identifiability message")
+    index = {str(n): i for i, n in enumerate(msg.name)}
+    effort = np.asarray(msg.effort, dtype=np.float64)
+    if effort.size != len(index):
+        raise InputError("identifiability message: effort must hold one status code per name")
+    codes = [int(effort[index[n]]) for n in COEFFICIENT_NAMES_WITH_UNITS]
+    if any(not 0 <= c < len(IDENTIFIABILITY_STATUS) for c in codes):
+        raise InputError(f"identifiability message: unknown status code in {codes}")
+    return Identifiability(stamp_ns, pos, vel, tuple(IDENTIFIABILITY_STATUS[c] for c in codes))
 
 
 def _level(value: Any) -> int:

@@ -9,6 +9,7 @@ COVARIANCE_TOPIC = "coefficients/covariance"
 INNOVATION_TOPIC = "innovation"
 NIS_TOPIC = "nis"
 SHAFT_TOPIC = "shaft"
+IDENTIFIABILITY_TOPIC = "identifiability"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 DEFAULT_NAMESPACE = "/rotor_estimator"
 

@@ -42,7 +42,8 @@ import numpy as np
 from . import ekf_kernel as kern
 from .alignment import AlignedBlock, AlignmentConfig, SampleAligner
 from .config import COEFFICIENT_NAMES, EstimatorConfig, RigConfig
-from .ekf import StreamingEKF
+from .ekf import StreamingEKF, initial_covariance
+from .identification.identifiability import IdentifiabilityReport, report_from_filter
 from .errors import ConfigError, InputError
 from .tachometer import ShaftAngleTracker, TachometerConfig
 
@@ -166,6 +167,7 @@ class Output:
     shaft_speed_rad_s: float
     shaft_angle_rad: float
     diagnostics: PipelineStatus
+    identifiability: IdentifiabilityReport | None = None
     nis_dof: int = _NIS_DOF
 
     def coefficient_dict(self) -> dict[str, dict[str, float]]:
@@ -570,10 +572,17 @@ class EstimatorPipeline:
             self._last_nis = float(res.nis[i])
 
     # ----------------------------------------------------------------- outputs
+    def identifiability(self) -> IdentifiabilityReport:
+        """Which coefficients the data received so far determine: the filter's information minus
+        its prior's, as a Cramer-Rao bound (see :mod:`rotor_estimator.identification.identifiability`)."""
+        prior = initial_covariance(self.estimator_config)[8:, 8:]
+        return report_from_filter(self.ekf.coefficient_covariance, prior, self.ekf.coefficients)
+
     def _output(self, stamp_ns: int) -> Output:
         ekf = self.ekf
         return Output(stamp_ns=int(stamp_ns), coefficients=ekf.coefficients, std=ekf.coefficient_std,
-                      covariance=ekf.coefficient_covariance, innovation_m=self._last_innov.copy(),
+                      covariance=ekf.coefficient_covariance, identifiability=self.identifiability(),
+                      innovation_m=self._last_innov.copy(),
                       innovation_std_m=self._last_innov_std.copy(), nis=self._last_nis,
                       nis_window_mean=ekf.health.nis_window_mean(), shaft_speed_rad_s=self._last_shaft[0],
                       shaft_angle_rad=self._last_shaft[1], diagnostics=self.status())

@@ -69,8 +69,12 @@ class CaseResult:
         return self.reported_std.mean(axis=0) / self.std
 
     def identifiable(self) -> np.ndarray:
-        """A coefficient is called determined when its CRLB is below 25% of its magnitude."""
-        return self.crlb_std < 0.25 * np.abs(self.true)
+        """Not "not determined" by the identifiability rule (CRLB within 25 % of the coefficient's
+        scale; :mod:`rotor_estimator.identification.identifiability`), judged at the true values."""
+        from .identification.identifiability import NOT_DETERMINED, report_from_std
+
+        report = report_from_std(self.crlb_std, self.true)
+        return np.array([e.status != NOT_DETERMINED for e in report.entries])
 
 
 def case_crlb(rig_file: RigFile, case: str) -> np.ndarray:
@@ -136,8 +140,9 @@ def format_table(result: CaseResult) -> str:
     lines.append(f"mean NIS over runs: {np.mean(result.nis_mean):.3f} (4 probe channels: 4 is consistent)")
     if not ident.all():
         names = ", ".join(n for n, ok in zip(COEFFICIENT_NAMES, ident) if not ok)
-        lines.append(f"WARNING: {names}: the CRLB exceeds 25% of the value; these data cannot pin them down, "
-                     f"whatever the estimator. Use a coast-down/run-up or impacts (see `rotor-estimator plan`).")
+        lines.append(f"WARNING: {names}: the CRLB exceeds 25% of the coefficient's scale; these data cannot pin "
+                     "them down, whatever the estimator. Use a coast-down/run-up or impacts "
+                     "(see `rotor-estimator plan`).")
     return "\n".join(lines)
 
 

@@ -18,9 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BagError, InputError
-
-#: A coefficient whose std exceeds this fraction of its magnitude is reported as not determined.
-NOT_DETERMINED_FRACTION = 0.25
+from ..identification.identifiability import NOT_DETERMINED, WEAK
 
 
 # ---------------------------------------------------------------------------------- replay
@@ -78,11 +76,11 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
         initial = final.coefficients
     acc = pipe.accounting()
     coefficients = {}
-    not_determined = []
+    ident = {e.name: e for e in final.identifiability.entries}
     for name, unit, mean, std in zip(COEFFICIENT_NAMES, COEFFICIENT_UNITS, final.coefficients, final.std):
-        coefficients[name] = {"mean": float(mean), "std": float(std), "unit": unit}
-        if not std <= NOT_DETERMINED_FRACTION * abs(mean):
-            not_determined.append(name)
+        coefficients[name] = {"mean": float(mean), "std": float(std), "unit": unit,
+                              "status": ident[name].status, "predicted_std_from_data": ident[name].predicted_std}
+    not_determined = final.identifiability.names_with(NOT_DETERMINED)
     summary = acc.summary()
     samples = {"processed": summary["processed"], "rejected": summary["rejected"],
                **{k: v for k, v in summary.items() if k not in ("processed", "rejected")}}
@@ -107,7 +105,8 @@ def format_replay(r: dict[str, Any]) -> str:
              f"estimate at stamp {r['stamp_ns']} ns", "",
              f"  {'':4} {'estimate':>14} {'std':>12}  unit"]
     for name, c in r["coefficients"].items():
-        flag = "  NOT DETERMINED (std > 25% of |estimate|)" if name in r["not_determined"] else ""
+        flag = {NOT_DETERMINED: "  NOT DETERMINED by these data (the number is not a measurement)",
+                WEAK: "  weakly determined (10-25 %)"}.get(c["status"], "")
         lines.append(f"  {name:4} {c['mean']:14.6g} {c['std']:12.4g}  {c['unit']}{flag}")
     s = r["samples"]
     reasons = {k: v for k, v in s.items() if v and k not in ("processed", "rejected") and not

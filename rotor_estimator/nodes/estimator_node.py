@@ -193,7 +193,8 @@ class EstimatorNode(Node):
         for stream in ("probe1", "probe2", "keyphasor", "impact"):
             self._subscribe(stream, self._initial_type(stream))
         self._pubs = {}
-        for name in (ma.COEFFICIENTS_TOPIC, ma.COVARIANCE_TOPIC, ma.INNOVATION_TOPIC, ma.NIS_TOPIC, ma.SHAFT_TOPIC):
+        for name in (ma.COEFFICIENTS_TOPIC, ma.COVARIANCE_TOPIC, ma.INNOVATION_TOPIC, ma.NIS_TOPIC, ma.SHAFT_TOPIC,
+                     ma.IDENTIFIABILITY_TOPIC):
             topic = ma.output_topic(name, self._namespace)
             self._pubs[topic] = self.create_publisher(self._factory.message_class("sensor_msgs/msg/JointState"), topic, 50)
         self._diag_pub = self.create_publisher(self._factory.message_class("diagnostic_msgs/msg/DiagnosticArray"),

@@ -5,6 +5,7 @@ rosbags messages (``rotor-estimator replay``), through :mod:`msg_adapters`.
 """
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import msg_adapters as ma
@@ -72,6 +73,11 @@ def output_messages(factory: ma.MessageFactory, out: Output, namespace: str = ma
         (ma.output_topic(ma.SHAFT_TOPIC, namespace), ma.shaft_to_msg(factory, t, out.shaft_speed_rad_s,
                                                                     out.shaft_angle_rad)),
     ]
+    if out.identifiability is not None:
+        ident = out.identifiability.entries
+        msgs.append((ma.output_topic(ma.IDENTIFIABILITY_TOPIC, namespace), ma.identifiability_to_msg(
+            factory, t, [math.nan if e.value_for_display is None else e.estimate for e in ident],
+            [e.predicted_std for e in ident], [e.status for e in ident])))
     if with_diagnostics:
         msgs.append((ma.DIAGNOSTICS_TOPIC, ma.diagnostics_to_msg(factory, t, [diagnostic_record(out.diagnostics, hardware_id)])))
     return msgs

@@ -83,3 +83,18 @@ def test_encoders_reject_wrong_sizes(factory):
 def test_output_topic_names_resolve_in_node_namespace():
     assert ma.output_topic(ma.COVARIANCE_TOPIC) == "/rotor_estimator/coefficients/covariance"
     assert ma.output_topic(ma.DIAGNOSTICS_TOPIC) == "/diagnostics"
+
+
+def test_identifiability_round_trip_keeps_nan_estimates_and_status_codes(factory, wire):
+    est = np.array([5e5, 4e5, np.nan, 6e5, 1100.0, np.nan, -40.0, 1200.0])
+    std = np.array([2e4, 1e4, 9e5, 1e4, 8.0, 400.0, 8.0, 10.0])
+    status = ("determined", "determined", "not determined", "determined", "determined", "not determined",
+              "weakly determined", "determined")
+    out = ma.identifiability_from_msg(wire(ma.identifiability_to_msg(factory, 42, est, std, status)))
+    assert out.stamp_ns == 42 and out.status == status
+    assert np.array_equal(out.estimate, est, equal_nan=True) and np.array_equal(out.predicted_std, std)
+
+
+def test_identifiability_rejects_unknown_status(factory):
+    with pytest.raises(InputError, match="status must be one of"):
+        ma.identifiability_to_msg(factory, 0, np.zeros(8), np.ones(8), ["sure"] * 8)

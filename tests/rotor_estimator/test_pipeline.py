@@ -268,3 +268,16 @@ def test_options_errors_name_the_bad_field(field, value):
 
     with pytest.raises(ConfigError, match=field):
         PipelineOptions(**{field: value})
+
+
+def test_identifiability_flags_imbalance_only_stiffness_and_clears_the_impact_case(seed_rig_file, impact_sim):
+    """Every output carries an identifiability report; imbalance-only data leave stiffness not determined."""
+    from rotor_estimator.identification.identifiability import NOT_DETERMINED
+    from rotor_estimator.simulator import paper_scenario, simulate
+
+    impact_final = feed(make(seed_rig_file), impact_sim.recording)[-1].identifiability
+    assert impact_final.names_with(NOT_DETERMINED) == []
+    starved = simulate(seed_rig_file.rig, paper_scenario("imbalance"), seed=3).recording
+    starved_final = feed(make(seed_rig_file), starved)[-1].identifiability
+    assert {"kxx", "kxy", "kyx", "kyy", "cxy", "cyx"} <= set(starved_final.names_with(NOT_DETERMINED))
+    assert all(e.value_for_display is None for e in starved_final.entries if e.status == NOT_DETERMINED)
