@@ -19,19 +19,16 @@ from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, qos_profile_sensor_data
 
 import msg_adapters as ma
 
+from .spin import run_node
 from ..alignment import AlignmentConfig
 from ..config import BearingCoefficients, RigFile, load_rig_file
-from ..errors import RotorEstimatorError
 from ..pipeline import LEVEL_WARN, EstimatorPipeline, PipelineOptions
 from ..tachometer import TachometerConfig
 from .io import diagnostic_record, feed_message, output_messages
@@ -318,22 +315,7 @@ class EstimatorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``ros2 run rotor_estimator estimator_node [--ros-args --params-file config/estimator.yaml]``."""
-    rclpy.init(args=args)
-    code = 0
-    node = None
-    try:
-        node = EstimatorNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (RotorEstimatorError, InvalidParameterValueException) as exc:
-        print(f"estimator_node: error: {exc}")
-        code = 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return run_node(EstimatorNode, "estimator_node", args)
 
 
 if __name__ == "__main__":

@@ -22,17 +22,15 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 import msg_adapters as ma
 
+from .spin import run_node
 from ..config import load_rig_file
-from ..errors import ConfigError, RotorEstimatorError
+from ..errors import ConfigError
 from ..recording import RigRecording
 from ..simulator import Impact, paper_scenario, simulate
 
@@ -247,22 +245,7 @@ class SimulatorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``ros2 run rotor_estimator simulator_node [--ros-args -p rate_factor:=0.5 ...]``."""
-    rclpy.init(args=args)
-    code = 0
-    node = None
-    try:
-        node = SimulatorNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (RotorEstimatorError, InvalidParameterValueException) as exc:
-        print(f"simulator_node: error: {exc}")
-        code = 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return run_node(SimulatorNode, "simulator_node", args)
 
 
 if __name__ == "__main__":

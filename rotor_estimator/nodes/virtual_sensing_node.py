@@ -22,16 +22,15 @@ import threading
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, qos_profile_sensor_data
 
 import msg_adapters as ma
 
-from ..errors import ConfigError, InputError, RotorEstimatorError
+from .spin import run_node
+from ..errors import ConfigError, InputError
 from ..flexible import build_state_space, load_rotor_description
 from ..virtual_sensing import (FILTERS, PipelineOptions, VirtualSensingConfig, VirtualSensingPipeline,
                                resolve_stations)
@@ -241,22 +240,7 @@ class VirtualSensingNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``ros2 run rotor_estimator virtual_sensing_node [--ros-args -p rotor_file:=... -p filter:=ukf]``."""
-    rclpy.init(args=args)
-    code = 0
-    node = None
-    try:
-        node = VirtualSensingNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RotorEstimatorError as exc:
-        print(f"virtual_sensing_node: error: {exc}")
-        code = 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return run_node(VirtualSensingNode, "virtual_sensing_node", args)
 
 
 if __name__ == "__main__":

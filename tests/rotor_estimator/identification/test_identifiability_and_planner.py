@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rotor_estimator.ekf import StreamingEKF, initial_covariance
-from rotor_estimator.identification.identifiability import (DETERMINED, NOT_DETERMINED, report_from_filter,
+from rotor_estimator.identification.identifiability import (NOT_DETERMINED, report_from_filter,
                                                             report_from_information)
 from rotor_estimator.identification.information import design_information
 from rotor_estimator.identification.planner import Target, evaluate, plan
