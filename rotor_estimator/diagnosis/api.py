@@ -1,0 +1,127 @@
+"""``diagnose``: nominal fit, residual budget, effect ranking and the before/after table.
+
+The JSON summary (``Diagnosis.summary()``) carries at least ``where``, ``ranking``,
+``best_effect`` (``"none"`` when the nominal model explains the data to the noise
+level), ``residual_rms_before`` / ``residual_rms_after`` (m, all probe channels) and
+``shrink_ratio`` (before / after; 1 means no shrink).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import COEFFICIENT_NAMES_WITH_UNITS, EstimatorConfig, RigConfig
+from ..recording import RigRecording
+from .context import FitContext, build_context
+from .effects import LIBRARY, Effect
+from .ranking import SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking, nominal_solution, rank_effects
+from .residuals import CHANNELS, budget, innovation_consistency
+
+SCHEMA_VERSION = 1
+
+
+@dataclass
+class Diagnosis:
+    """Everything the report shows; ``summary()`` is the JSON."""
+
+    ctx: FitContext
+    ranking: Ranking
+    where: dict
+    innovations: dict
+    nominal_prediction_m: np.ndarray
+    table: list[dict]
+
+    @property
+    def best_effect(self) -> str:
+        return self.ranking.best.name if self.ranking.best else "none"
+
+    @property
+    def after_fit(self) -> EffectFit | None:
+        """The final model: winner, plus the second effect when one was found."""
+        return self.ranking.second or self.ranking.best
+
+    def summary(self) -> dict:
+        ctx, rk = self.ctx, self.ranking
+        before = _rms(ctx.y_m - self.nominal_prediction_m, ctx.mask)
+        after = _rms(ctx.y_m - self.after_fit.prediction_m, ctx.mask) if self.after_fit else before
+        best = rk.best
+        top2 = [f.name for f in rk.singles[:2]]
+        if best is not None:
+            top2 = [best.name, (rk.second.name if rk.second else
+                                next(f.name for f in rk.singles if f.name != best.name))]
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "where": self.where,
+            "innovations": self.innovations,
+            "ranking": [{"effect": f.name, "delta_bic": round(f.delta_bic, 2), "n_params": f.n_params,
+                         "held_out_rms_m": f.held_out_rms_m, "residual_rms_m": _total(f.residual_rms_m)}
+                        for f in rk.singles],
+            "decision_rule": {"min_delta_bic": SIGNIFICANCE_DELTA_BIC,
+                              "held_out_must_improve": True,
+                              "nominal_held_out_rms_m": rk.nominal_held_out_rms_m},
+            "best_effect": self.best_effect,
+            "best_effect_fit": best.summary() if best else None,
+            "second_effect": rk.second.name if rk.second else "none",
+            "second_effect_fit": rk.second.summary() if rk.second else None,
+            "top_two": top2,
+            "residual_rms_before": float(before),
+            "residual_rms_after": float(after),
+            "residual_rms_before_per_channel_m": dict(zip(CHANNELS, _per_channel(ctx.y_m - self.nominal_prediction_m, ctx.mask))),
+            "residual_rms_after_per_channel_m": dict(zip(CHANNELS, _per_channel(
+                ctx.y_m - (self.after_fit.prediction_m if self.after_fit else self.nominal_prediction_m), ctx.mask))),
+            "shrink_ratio": float(before / after) if after > 0 else 1.0,
+            "noise_std_m": float(np.sqrt(np.mean(ctx.noise_std_m ** 2))),
+            "coefficients_ekf": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, ctx.coefficients_ekf))),
+            "coefficients_nominal": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, ctx.coefficients))),
+            "table": self.table,
+        }
+
+
+def _rms(e: np.ndarray, mask: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(e[mask] ** 2)))
+
+
+def _per_channel(e: np.ndarray, mask: np.ndarray) -> list[float]:
+    return [float(v) for v in np.sqrt(np.mean(e[mask] ** 2, axis=0))]
+
+
+def _total(per_channel: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.asarray(per_channel) ** 2)))
+
+
+def _row(ctx: FitContext, label: str, prediction: np.ndarray, held_out: float, coefficients: np.ndarray) -> dict:
+    e = (ctx.y_m - prediction)[ctx.mask]
+    b = budget(ctx.t_s[ctx.mask], e, ctx.shaft.angle_rad[ctx.mask], ctx.shaft.speed_rad_s[ctx.mask],
+               ctx.impact_force_n[ctx.mask], ctx.noise_std_m)
+    bands = {r["band"]: r["rms_m"] for r in b["bands"]}
+    nis = float(np.mean(np.sum(e ** 2 / ctx.noise_std_m ** 2, axis=1)))
+    return {"model": label, "residual_rms_m": _rms(ctx.y_m - prediction, ctx.mask),
+            "per_channel_rms_m": dict(zip(CHANNELS, _per_channel(ctx.y_m - prediction, ctx.mask))),
+            "excess_band_rms_m": {k: bands.get(k, 0.0) for k in ("1X", "2X", "3X", "nonsync_peaks", "broadband")},
+            "output_nis_mean": nis, "held_out_rms_m": held_out,
+            "coefficients": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, coefficients)))}
+
+
+def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *, passes: int = 2,
+             library: tuple[Effect, ...] = LIBRARY) -> Diagnosis:
+    """Fit the nominal model, budget its residual, rank the candidate effects, tabulate before/after."""
+    ctx = build_context(recording, rig, config, passes=passes)
+    sol0, _, ho0 = nominal_solution(ctx)
+    rk = rank_effects(ctx, library)
+    where = budget(ctx.t_s[ctx.mask], (ctx.y_m - sol0.prediction_m)[ctx.mask], ctx.shaft.angle_rad[ctx.mask],
+                   ctx.shaft.speed_rad_s[ctx.mask], ctx.impact_force_n[ctx.mask], ctx.noise_std_m)
+    innov = innovation_consistency(ctx.ekf_nis, ctx.ekf_innovation_m, ctx.ekf_innovation_std_m)
+    table = [_row(ctx, "nominal", sol0.prediction_m, ho0, ctx.coefficients)]
+    shown = []
+    if rk.best is not None:
+        shown.append(("+ " + rk.best.name, rk.best))
+    runner = next((f for f in rk.singles if rk.best is None or f.name != rk.best.name), None)
+    if runner is not None:
+        shown.append(("+ " + runner.name + " (runner-up)", runner))
+    if rk.second is not None:
+        shown.append(("+ " + rk.best.name + " + " + rk.second.name, rk.second))
+    for label, fit in shown:
+        table.append(_row(ctx, label, fit.prediction_m, fit.held_out_rms_m, fit.coefficients))
+    return Diagnosis(ctx=ctx, ranking=rk, where=where, innovations=innov, nominal_prediction_m=sol0.prediction_m,
+                     table=table)

@@ -1,0 +1,277 @@
+"""Blind withheld-effect cases: records with zero, one or two hidden effects, labels kept apart.
+
+Each case draws a speed (8-24 krpm), probe noise (0.5-2 um), 1-3 hammer impacts (200-600 N,
+random direction and time), bearing coefficients within +-30 % of the seed rig's, and
+effects whose strength is calibrated so that the part the nominal model cannot absorb
+(the effect's output minus its least-squares projection on the 8 coefficient
+sensitivities and the DC offsets, all from the data simulator) has the RMS
+``sqrt(gap^2 - 1) * noise``: ``gap`` is the intended nominal-residual-to-noise ratio,
+drawn in 1.2-2 for the near-limit share of the set and 2-4 otherwise.
+
+:func:`write_blind_set` writes ``cases/<id>/recording.npz`` and ``cases/<id>/rig.yaml``
+(no true coefficients) and, apart, ``labels/labels.json``; the diagnosis reads only
+the case directories. Cases from ROSS (an independent FE simulator) come from
+:mod:`.ross_cases` when ``ross`` is importable.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..config import BearingCoefficients, RigConfig, RigFile, load_rig_file
+from ..recording import RigRecording
+from ..simulator import Impact
+from .effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
+
+SINGLE_EFFECTS = ("residual_unbalance", "tach_offset", "probe_runout", "misalignment", "bearing_cubic",
+                  "pedestal", "shaft_bending", "probe_gain_orientation", "timing_skew")
+PAIRS = (("probe_runout", "bearing_cubic"), ("misalignment", "timing_skew"),
+         ("residual_unbalance", "pedestal"), ("probe_gain_orientation", "shaft_bending"))
+WARMUP_S = 0.010
+
+
+@dataclass
+class BlindCase:
+    """One generated case: what the diagnosis sees (recording, rig file) and the withheld label."""
+
+    case_id: str
+    recording: RigRecording
+    rig_file: RigFile
+    label: dict
+
+
+def _shape(name: str, s: float, rng: np.random.Generator, ctx: dict) -> dict:
+    """Keyword arguments of :class:`HiddenEffects` for effect ``name`` at strength ``s`` (shape fixed by rng state)."""
+    if name == "residual_unbalance":
+        return {"residual_unbalance_kg_m": tuple(float(v) for v in s * 5e-6 * ctx["u"])}
+    if name == "tach_offset":
+        return {"tach_offset_rad": float(np.clip(s * 0.05 * ctx["sign"], -1.5, 1.5))}
+    if name == "probe_runout":
+        return {"runout_m": s * 0.5e-6 * ctx["runout"]}
+    if name == "misalignment":
+        return {"misalignment_n": tuple(float(v) for v in s * 10.0 * ctx["mis"]), "preload_n": tuple(ctx["preload"])}
+    if name == "bearing_cubic":
+        return {"cubic_n_per_m3": tuple(float(v) for v in s * 1e13 * ctx["k3"])}
+    if name == "pedestal":
+        m, zeta = ctx["ped_m"], ctx["ped_zeta"]
+        k = 4e7 / s
+        return {"pedestal": (m, k, 2 * zeta * math.sqrt(k * m))}
+    if name == "shaft_bending":
+        f = float(np.clip(2500.0 / math.sqrt(s), 120.0, 6000.0))
+        return {"bending": (f, ctx["bend_zeta"], ctx["bend_m"])}
+    if name == "probe_gain_orientation":
+        return {"gain": tuple(float(v) for v in s * 0.02 * ctx["gain"]),
+                "orientation_rad": tuple(float(v) for v in s * 0.02 * ctx["orient"])}
+    if name == "timing_skew":
+        return {"skew_s": tuple(float(v) for v in s * 3e-6 * ctx["skew"])}
+    raise KeyError(name)
+
+
+def _shape_context(rng: np.random.Generator) -> dict:
+    runout = rng.normal(size=(4, 3, 2)) * np.array([1.0, 0.7, 0.5])[None, :, None]
+    return {"u": rng.normal(size=4), "sign": rng.choice([-1.0, 1.0]) * rng.uniform(0.7, 1.3), "runout": runout,
+            "mis": rng.normal(size=4), "preload": rng.normal(size=2) * 30.0,
+            "k3": rng.uniform(0.3, 1.0, size=2),
+            "ped_m": float(rng.uniform(1.0, 4.0)), "ped_zeta": float(rng.uniform(0.03, 0.12)),
+            "bend_zeta": float(rng.uniform(0.01, 0.05)), "bend_m": float(rng.uniform(0.8, 2.0)),
+            "gain": rng.normal(size=4), "orient": rng.normal(size=2), "skew": rng.uniform(-1, 1, size=3)}
+
+
+def _unabsorbed_rms(rig, scenario, effects, base_clean, basis_q, first) -> float:
+    y = simulate_with_effects(rig, scenario, effects, noise=False).clean_m
+    if not np.all(np.isfinite(y)) or np.abs(y).max() > 1e-3:
+        return float("inf")
+    d = (y - base_clean)[first:].ravel()
+    d = d - basis_q @ (basis_q.T @ d)
+    return float(np.sqrt(np.mean(d ** 2)))
+
+
+def _absorption_basis(rig, scenario, base_clean, first):
+    """Orthonormal basis of the 8 coefficient sensitivities and 4 DC columns (data simulator's own)."""
+    r0 = np.asarray(scenario.coefficients, dtype=float)
+    cols = []
+    for i in range(8):
+        step = np.zeros(8)
+        step[i] = 1e-3 * max(abs(r0[i]), 1e3 if i < 4 else 10.0)
+        y = simulate_with_effects(rig, replace(scenario, coefficients=r0 + step), HiddenEffects(), noise=False).clean_m
+        cols.append(((y - base_clean) / step[i])[first:].ravel())
+    n = base_clean.shape[0] - first
+    for c in range(4):
+        dc = np.zeros((n, 4))
+        dc[:, c] = 1.0
+        cols.append(dc.ravel())
+    a = np.column_stack(cols)
+    q, _ = np.linalg.qr(a / np.linalg.norm(a, axis=0))
+    return q
+
+
+def calibrate(rig, scenario, names, rng, target_rms_m) -> tuple[HiddenEffects, dict]:
+    """Find each effect's strength so that its unabsorbed RMS hits ``target_rms_m`` (secant in log-log)."""
+    ctx = _shape_context(rng)
+    first = int(round(WARMUP_S / rig.sample_period_s))
+    base = simulate_with_effects(rig, scenario, HiddenEffects(), noise=False).clean_m
+    q = _absorption_basis(rig, scenario, base, first)
+    kwargs, strengths = {}, {}
+    for name, target in zip(names, target_rms_m):
+        s, slope = 1.0, 1.0
+        prev = None
+        for _ in range(8):
+            a = _unabsorbed_rms(rig, scenario, HiddenEffects(**_shape(name, s, rng, ctx)), base, q, first)
+            if a <= 0:
+                s *= 10
+                continue
+            if not math.isfinite(a):
+                s *= 0.3
+                continue
+            if abs(a / target - 1) < 0.03:
+                break
+            if prev is not None and prev[1] > 0 and abs(math.log(s / prev[0])) > 1e-6:
+                slope = float(np.clip(math.log(a / prev[1]) / math.log(s / prev[0]), 0.3, 5.0))
+            prev = (s, a)
+            s = s * (target / a) ** (1 / slope)
+            if name == "pedestal":
+                s = min(s, 4e7 / (ctx["ped_m"] * (2 * math.pi * 60.0) ** 2))
+        strengths[name] = s
+        kwargs.update(_shape(name, s, rng, ctx))
+    return HiddenEffects(**kwargs), strengths
+
+
+def _random_impacts(rng, duration_s) -> tuple[Impact, ...]:
+    out = []
+    for _ in range(int(rng.integers(1, 4))):
+        mag, ang = rng.uniform(200.0, 600.0), rng.uniform(0, 2 * np.pi)
+        start = round(float(rng.uniform(0.03, 0.8 * duration_s)) / 50e-6) * 50e-6
+        out.append(Impact(start, 50e-6, float(mag * np.cos(ang)), float(mag * np.sin(ang))))
+    return tuple(out)
+
+
+def make_case(case_id: str, names: tuple[str, ...], seed: int, *, near_limit: bool,
+              rig_file: RigFile | None = None) -> BlindCase:
+    """Draw conditions and hidden effects for one case (``names`` empty: a control)."""
+    rng = np.random.default_rng(seed)
+    rig_file = rig_file or load_rig_file()
+    base_rig = rig_file.rig
+    speed = float(rng.uniform(8000, 24000)) * math.pi / 30
+    noise = float(rng.uniform(0.5e-6, 2e-6))
+    duration = float(rng.uniform(0.25, 0.3))
+    r_true = base_rig.true_coefficients.as_array() * rng.uniform(0.7, 1.3, size=8)
+    scenario = EffectScenario(speed_rad_s=speed, duration_s=duration, lead_in_s=0.3,
+                              impacts=_random_impacts(rng, duration), noise_std_m=noise, coefficients=r_true)
+    rig = replace(base_rig, speed_rad_s=speed, noise_std_m=noise)
+    gaps = [float(rng.uniform(1.2, 2.0) if near_limit else rng.uniform(2.0, 4.0)) for _ in names]
+    targets = [math.sqrt(g * g - 1) * noise / math.sqrt(max(len(names), 1)) for g in gaps]
+    effects, strengths = calibrate(rig, scenario, names, rng, targets) if names else (HiddenEffects(), {})
+    sim = simulate_with_effects(rig, scenario, effects, seed=seed + 1)
+    first = int(round(WARMUP_S / rig.sample_period_s))
+    seen_rig = replace(rig, true_coefficients=None)
+    label = {"effects": list(names), "generator": "effect_sim", "near_limit_target": near_limit,
+             "target_gap": gaps, "strengths": strengths, "noise_std_m": noise,
+             "noise_rms_m": float(np.sqrt(np.mean(sim.noise_m[first:] ** 2))), "speed_rpm": speed * 30 / math.pi,
+             "true_coefficients": [float(v) for v in r_true], "effects_params": _jsonable(effects.__dict__)}
+    return BlindCase(case_id, sim.recording, RigFile(rig=seen_rig, estimator=rig_file.estimator), label)
+
+
+def _jsonable(d: dict) -> dict:
+    out = {}
+    for k, v in d.items():
+        if v is None:
+            out[k] = None
+        else:
+            out[k] = np.asarray(v, dtype=float).tolist()
+    return out
+
+
+def plan(n_cases: int, seed: int, *, n_ross: int = 0) -> list[tuple[str, tuple[str, ...], bool, int]]:
+    """(case_id, effects, near_limit, seed) for a set: ~12 % controls, every single effect, ~10 % pairs."""
+    rng = np.random.default_rng(seed)
+    n_own = n_cases - n_ross
+    n_controls = max(3, round(0.12 * n_own))
+    n_pairs = max(2, round(0.10 * n_own))
+    n_single = n_own - n_controls - n_pairs
+    combos: list[tuple[str, ...]] = [()] * n_controls
+    combos += [(SINGLE_EFFECTS[i % len(SINGLE_EFFECTS)],) for i in range(n_single)]
+    combos += [PAIRS[i % len(PAIRS)] for i in range(n_pairs)]
+    order = rng.permutation(len(combos))
+    out = []
+    for j, i in enumerate(order):
+        near = bool(rng.random() < 0.4)
+        out.append((f"case_{j:03d}", combos[i], near, int(seed * 1000 + j)))
+    return out
+
+
+def save_recording(path: Path, recording: RigRecording) -> None:
+    np.savez_compressed(path, stamps_ns=recording.stamps_ns, probes_m=recording.probes_m,
+                        pulse_stamps_ns=recording.pulse_stamps_ns, impact_force_n=recording.impact_force_n)
+
+
+def load_recording(path: Path) -> RigRecording:
+    with np.load(path) as z:
+        return RigRecording(z["stamps_ns"], z["probes_m"], z["pulse_stamps_ns"], z["impact_force_n"],
+                            meta={"source": str(path)})
+
+
+def rig_file_yaml(rig_file: RigFile) -> str:
+    """A rig YAML (the format of :func:`rotor_estimator.config.load_rig_file`) without true coefficients."""
+    import yaml
+
+    rig, est = rig_file.rig, rig_file.estimator
+    data = {"rig": {
+        "name": rig.name,
+        "shaft": {"mass_kg": rig.shaft_mass_kg, "polar_inertia_kg_m2": rig.polar_inertia_kg_m2,
+                  "transverse_inertia_kg_m2": rig.transverse_inertia_kg_m2},
+        "bearings": {"bearing1": {"axial_position_m": rig.bearing1_position_m},
+                     "bearing2": {"axial_position_m": rig.bearing2_position_m}},
+        "probes": {"probe1": {"axial_position_m": rig.probe1_position_m},
+                   "probe2": {"axial_position_m": rig.probe2_position_m}},
+        "impact": {"axial_position_m": rig.impact_position_m},
+        "imbalances": [{"mass_kg": u.mass_kg, "radius_m": u.radius_m, "phase_deg": math.degrees(u.phase_rad),
+                        "axial_position_m": u.axial_position_m} for u in rig.imbalances],
+        "operating": {"speed_rpm": rig.speed_rad_s * 30 / math.pi, "sample_rate_hz": rig.sample_rate_hz,
+                      "noise_std_m": rig.noise_std_m}},
+        "estimator": {
+            "initial_coefficients": est.initial_coefficients.to_mapping(),
+            "initial_coefficient_std": est.initial_coefficient_std.to_mapping(),
+            "initial_displacement_std_m": est.initial_displacement_std_m,
+            "initial_velocity_std_m_s": est.initial_velocity_std_m_s,
+            "measurement_noise_std_m": est.measurement_noise_std_m,
+            "motion_process_noise_accel_m_s2": est.motion_process_noise_accel_m_s2,
+            "innovation_gate_nis": est.innovation_gate_nis, "passes": est.passes}}
+    return yaml.safe_dump(data, sort_keys=False)
+
+
+def write_blind_set(out_dir: str | Path, n_cases: int = 40, seed: int = 2024, *, use_ross: bool = True,
+                    progress=None) -> dict:
+    """Generate a blind set on disk; returns the labels (also written to ``labels/labels.json``)."""
+    out = Path(out_dir)
+    (out / "cases").mkdir(parents=True, exist_ok=True)
+    (out / "labels").mkdir(parents=True, exist_ok=True)
+    labels = {}
+    cases = []
+    ross_cases = []
+    if use_ross:
+        from . import ross_cases as rc
+
+        if rc.ross_available():
+            ross_cases = rc.plan(n_cases, seed)
+    for cid, names, near, s in plan(n_cases, seed, n_ross=len(ross_cases)):
+        cases.append(make_case(cid, names, s, near_limit=near))
+        if progress:
+            progress(cid)
+    for i, (names, s, kw) in enumerate(ross_cases):
+        from . import ross_cases as rc
+
+        cases.append(rc.make_case(f"case_{len(cases):03d}", names, s, **kw))
+        if progress:
+            progress(cases[-1].case_id)
+    for c in cases:
+        d = out / "cases" / c.case_id
+        d.mkdir(parents=True, exist_ok=True)
+        save_recording(d / "recording.npz", c.recording)
+        (d / "rig.yaml").write_text(rig_file_yaml(c.rig_file))
+        labels[c.case_id] = c.label
+    (out / "labels" / "labels.json").write_text(json.dumps(labels, indent=1))
+    return labels

@@ -1,0 +1,356 @@
+"""The library of candidate unmodelled effects: small, physical augmentations of Eq. 2.
+
+Each effect is a frozen dataclass with its physical parameters (SI, unit in the name)
+and two functions used by :mod:`.fitting`:
+
+* ``basis(ctx, nl)`` -> ``(offset (N,4) or None, columns (N,4,k))``: the effect's
+  contribution to the probe output about the nominal fit, for nonlinear parameters
+  ``nl``; the columns' gains are the linear parameters.
+* ``physical(nl, lin)`` -> the named physical parameters.
+
+Measurement-side effects act on the probe signals, ``y = g(y_true)``; force-side
+effects add a generalized force ``F_e`` to Eq. 5 and enter through the nominal model's
+response (linear in their amplitudes); structural effects (pedestal, bending mode)
+change the state-space model (:mod:`.models`) and are re-simulated.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ..model import imbalance_force
+from . import models
+from .context import FitContext
+from .linsim import simulate_linear
+
+CHANNELS = ("xp1", "yp1", "xp2", "yp2")
+UNIT_UNBALANCE_KG_M = 1e-6   # 1 g*mm
+UNIT_CUBIC_N_PER_M3 = 1e12
+UNIT_RUNOUT_M = 1e-6
+UNIT_SKEW_S = 1e-6
+
+
+@dataclass(frozen=True)
+class Effect:
+    """Base of the candidate effects: ``name``, a one-line ``description`` and parameter names."""
+
+    name: ClassVar[str] = "effect"
+    description: ClassVar[str] = ""
+    nl_names: ClassVar[tuple[str, ...]] = ()
+
+    def lin_names(self, ctx: FitContext) -> tuple[str, ...]:
+        raise NotImplementedError
+
+    def n_params(self, ctx: FitContext) -> int:
+        return len(self.nl_names) + len(self.lin_names(ctx))
+
+    def nl_grid(self, ctx: FitContext) -> list[np.ndarray]:
+        """Starting points of the nonlinear search (empty for a linear effect)."""
+        return []
+
+    def nl_bounds(self, ctx: FitContext) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(0), np.zeros(0)
+
+    def basis(self, ctx: FitContext, nl: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+        raise NotImplementedError
+
+    def physical(self, nl: np.ndarray, lin: np.ndarray) -> dict[str, float]:
+        """Physical parameter values (SI) from the fitted nonlinear and linear parameters."""
+        return {}
+
+
+def _unbalance_force(ctx: FitContext, axial_position_m: float, phase_rad: float, moment_kg_m: float,
+                     harmonic: int = 1) -> np.ndarray:
+    """Generalized force of a rotating mass ``m r`` at ``axial_position_m`` (Eq. 5, single plane)."""
+    a = harmonic * ctx.shaft.angle_rad + phase_rad
+    w, acc = ctx.shaft.speed_rad_s, ctx.shaft.accel_rad_s2
+    fx = moment_kg_m * (w * w * np.cos(a) + acc * np.sin(a))
+    fy = moment_kg_m * (w * w * np.sin(a) - acc * np.cos(a))
+    return models.point_generalized_force(ctx.rig, axial_position_m, fx, fy)
+
+
+def unbalance_planes(ctx: FitContext) -> tuple[float, float]:
+    """Correction planes: the rig's two imbalance planes, else the bearing stations."""
+    planes = sorted({u.axial_position_m for u in ctx.rig.imbalances})
+    if len(planes) >= 2:
+        return planes[0], planes[-1]
+    return ctx.rig.bearing1_position_m, ctx.rig.bearing2_position_m
+
+
+@dataclass(frozen=True)
+class ResidualUnbalance(Effect):
+    """Unknown residual unbalance in two correction planes (1X forcing through Eq. 2)."""
+
+    name: ClassVar[str] = "residual_unbalance"
+    description: ClassVar[str] = "unknown residual unbalance in two planes (1X forward forcing)"
+
+    def lin_names(self, ctx):
+        return ("u1_cos_g_mm", "u1_sin_g_mm", "u2_cos_g_mm", "u2_sin_g_mm")
+
+    def basis(self, ctx, nl):
+        cols = [ctx.response(_unbalance_force(ctx, s, ph, UNIT_UNBALANCE_KG_M))
+                for s in unbalance_planes(ctx) for ph in (0.0, np.pi / 2)]
+        return None, np.stack(cols, axis=2)
+
+    def physical(self, nl, lin):
+        u1, u2 = complex(lin[0], lin[1]), complex(lin[2], lin[3])
+        return {"plane1_unbalance_g_mm": abs(u1), "plane1_phase_deg": float(np.degrees(np.angle(u1))),
+                "plane2_unbalance_g_mm": abs(u2), "plane2_phase_deg": float(np.degrees(np.angle(u2)))}
+
+
+@dataclass(frozen=True)
+class TachometerOffset(Effect):
+    """Keyphasor mark off by an angle: the known imbalance is applied at ``angle + offset``."""
+
+    name: ClassVar[str] = "tach_offset"
+    description: ClassVar[str] = "keyphasor angular offset (imbalance phase reference rotated)"
+    nl_names: ClassVar[tuple[str, ...]] = ("offset_rad",)
+
+    def lin_names(self, ctx):
+        return ()
+
+    def nl_grid(self, ctx):
+        return [np.array([v]) for v in (-0.3, -0.1, 0.1, 0.3)]
+
+    def nl_bounds(self, ctx):
+        return np.array([-np.pi / 2]), np.array([np.pi / 2])
+
+    def basis(self, ctx, nl):
+        shifted = imbalance_force(ctx.mats, ctx.shaft.angle_rad + nl[0], ctx.shaft.speed_rad_s,
+                                  ctx.shaft.accel_rad_s2)
+        return ctx.response(shifted - ctx.known_smooth_n), np.zeros((ctx.t_s.size, 4, 0))
+
+    def physical(self, nl, lin):
+        return {"offset_deg": float(np.degrees(nl[0]))}
+
+
+@dataclass(frozen=True)
+class ProbeRunout(Effect):
+    """Mechanical/electrical runout: a pattern fixed in shaft angle, Fourier series per probe."""
+
+    name: ClassVar[str] = "probe_runout"
+    description: ClassVar[str] = "probe runout fixed in shaft angle (harmonics 1..H per channel)"
+    harmonics: int = 4
+
+    def lin_names(self, ctx):
+        return tuple(f"{ch}_{h}x_{cs}_um" for ch in CHANNELS for h in range(1, self.harmonics + 1)
+                     for cs in ("cos", "sin"))
+
+    def basis(self, ctx, nl):
+        n = ctx.t_s.size
+        cols = np.zeros((n, 4, 8 * self.harmonics))
+        i = 0
+        for c in range(4):
+            for h in range(1, self.harmonics + 1):
+                cols[:, c, i] = np.cos(h * ctx.shaft.angle_rad) * UNIT_RUNOUT_M
+                cols[:, c, i + 1] = np.sin(h * ctx.shaft.angle_rad) * UNIT_RUNOUT_M
+                i += 2
+        return None, cols
+
+    def physical(self, nl, lin):
+        amp = np.abs(lin[0::2] + 1j * lin[1::2]).reshape(4, self.harmonics) * UNIT_RUNOUT_M
+        out = {f"{ch}_runout_peak_m": float(np.sqrt((a ** 2).sum() * 2)) for ch, a in zip(CHANNELS, amp)}
+        for h in range(self.harmonics):
+            out[f"mean_{h + 1}x_amplitude_m"] = float(amp[:, h].mean())
+        return out
+
+
+@dataclass(frozen=True)
+class Misalignment(Effect):
+    """Coupling misalignment: a 2X force at the drive-end bearing (its static preload only shifts DC)."""
+
+    name: ClassVar[str] = "misalignment"
+    description: ClassVar[str] = "coupling misalignment, 2X force at bearing 1 (x and y)"
+
+    def lin_names(self, ctx):
+        return ("fx_2x_cos_n", "fx_2x_sin_n", "fy_2x_cos_n", "fy_2x_sin_n")
+
+    def basis(self, ctx, nl):
+        two = 2 * ctx.shaft.angle_rad
+        s = ctx.rig.bearing1_position_m
+        zero = np.zeros_like(two)
+        cols = [ctx.response(models.point_generalized_force(ctx.rig, s, np.cos(two), zero)),
+                ctx.response(models.point_generalized_force(ctx.rig, s, np.sin(two), zero)),
+                ctx.response(models.point_generalized_force(ctx.rig, s, zero, np.cos(two))),
+                ctx.response(models.point_generalized_force(ctx.rig, s, zero, np.sin(two)))]
+        return None, np.stack(cols, axis=2)
+
+    def physical(self, nl, lin):
+        return {"force_2x_x_amplitude_n": float(abs(complex(lin[0], lin[1]))),
+                "force_2x_y_amplitude_n": float(abs(complex(lin[2], lin[3])))}
+
+
+@dataclass(frozen=True)
+class BearingCubic(Effect):
+    """Bearing stiffness nonlinearity ``f = -k3 x^3`` (x and y, both bearings), first-order perturbation."""
+
+    name: ClassVar[str] = "bearing_cubic"
+    description: ClassVar[str] = "cubic bearing stiffness (hardening/softening), k3x and k3y"
+
+    def lin_names(self, ctx):
+        return ("k3x_1e12_N_per_m3", "k3y_1e12_N_per_m3")
+
+    def basis(self, ctx, nl):
+        z = ctx.z_nom_m - ctx.z_nom_m[ctx.mask].mean(axis=0)
+        fx = np.zeros_like(z)
+        fy = np.zeros_like(z)
+        fx[:, [0, 2]] = -UNIT_CUBIC_N_PER_M3 * z[:, [0, 2]] ** 3
+        fy[:, [1, 3]] = -UNIT_CUBIC_N_PER_M3 * z[:, [1, 3]] ** 3
+        return None, np.stack([ctx.response(fx), ctx.response(fy)], axis=2)
+
+    def physical(self, nl, lin):
+        return {"k3x_N_per_m3": float(lin[0] * UNIT_CUBIC_N_PER_M3), "k3y_N_per_m3": float(lin[1] * UNIT_CUBIC_N_PER_M3)}
+
+
+@dataclass(frozen=True)
+class PedestalFlexibility(Effect):
+    """Bearing housings on a mass-spring-damper foundation (isotropic, both bearings)."""
+
+    name: ClassVar[str] = "pedestal"
+    description: ClassVar[str] = "foundation/pedestal flexibility: housing mass, spring and damper under each bearing"
+    nl_names: ClassVar[tuple[str, ...]] = ("log10_frequency_hz", "log10_damping_ratio", "log10_mass_kg")
+
+    def lin_names(self, ctx):
+        return ()
+
+    def nl_grid(self, ctx):
+        return [np.array([np.log10(f), np.log10(0.05), np.log10(m)])
+                for f in (100.0, 200.0, 400.0, 800.0, 1600.0) for m in (0.5, 2.0, 8.0)]
+
+    def nl_bounds(self, ctx):
+        fmax = 0.45 * ctx.sample_rate_hz
+        return np.array([np.log10(20.0), -3.0, -1.5]), np.array([np.log10(fmax), 0.0, 2.0])
+
+    @staticmethod
+    def housing(nl: np.ndarray) -> tuple[float, float, float]:
+        f, zeta, m = 10 ** nl[0], 10 ** nl[1], 10 ** nl[2]
+        k = m * (2 * np.pi * f) ** 2
+        return m, k, 2 * zeta * np.sqrt(k * m)
+
+    def basis(self, ctx, nl):
+        m, k, c = self.housing(nl)
+        mats, r = ctx.mats, ctx.coefficients
+        out, _ = simulate_linear(lambda w: models.pedestal_state_matrix(mats, r, w, m, k, c),
+                                 models.pedestal_input(mats), models.pedestal_output(mats), ctx.period_s,
+                                 ctx.schedule, ctx.shaft.angle_rad, ctx.known_smooth_n, ctx.known_step_n)
+        return out[:, :4] - ctx.y_nom_m, np.zeros((ctx.t_s.size, 4, 0))
+
+    def physical(self, nl, lin):
+        m, k, c = self.housing(nl)
+        return {"pedestal_frequency_hz": float(10 ** nl[0]), "pedestal_damping_ratio": float(10 ** nl[1]),
+                "pedestal_mass_kg": m, "pedestal_stiffness_N_per_m": k, "pedestal_damping_N_s_per_m": c}
+
+
+def modal_forces(ctx: FitContext) -> tuple[np.ndarray, np.ndarray]:
+    """Modal force ``sum_i phi(s_i) f_i`` (N, 2) of the known imbalances (smooth) and the impact (step)."""
+    rig = ctx.rig
+    smooth = np.zeros((ctx.t_s.size, 2))
+    for u in rig.imbalances:
+        a = ctx.shaft.angle_rad + u.phase_rad
+        w, acc = ctx.shaft.speed_rad_s, ctx.shaft.accel_rad_s2
+        phi = float(models.mode_shape(rig, u.axial_position_m))
+        smooth[:, 0] += phi * u.moment_kg_m * (w * w * np.cos(a) + acc * np.sin(a))
+        smooth[:, 1] += phi * u.moment_kg_m * (w * w * np.sin(a) - acc * np.cos(a))
+    step = float(models.mode_shape(rig, rig.impact_position_m)) * ctx.impact_force_n
+    return smooth, step
+
+
+@dataclass(frozen=True)
+class ShaftBending(Effect):
+    """First bending mode of the shaft (pinned at the bearings), excited by the imbalance and the impact."""
+
+    name: ClassVar[str] = "shaft_bending"
+    description: ClassVar[str] = "shaft flexibility: first bending mode (frequency, damping, modal mass)"
+    nl_names: ClassVar[tuple[str, ...]] = ("log10_frequency_hz", "log10_damping_ratio")
+
+    def lin_names(self, ctx):
+        return ("inverse_modal_mass_per_kg",)
+
+    def nl_grid(self, ctx):
+        fmax = 0.4 * ctx.sample_rate_hz
+        return [np.array([lf, np.log10(z)]) for lf in np.linspace(np.log10(60.0), np.log10(fmax), 16)
+                for z in (0.01, 0.05)]
+
+    def nl_bounds(self, ctx):
+        return np.array([np.log10(20.0), -3.0]), np.array([np.log10(0.45 * ctx.sample_rate_hz), -0.3])
+
+    def basis(self, ctx, nl):
+        smooth, step = modal_forces(ctx)
+        a = models.modal_state_matrix(10 ** nl[0], 10 ** nl[1])
+        b = np.vstack([np.eye(2), np.zeros((2, 2))])
+        c = np.hstack([np.zeros((2, 2)), np.eye(2)])
+        q, _ = simulate_linear(lambda w: a, b, c, ctx.period_s, ctx.schedule, ctx.shaft.angle_rad, smooth, step)
+        rig = ctx.rig
+        p1, p2 = models.mode_shape(rig, rig.probe1_position_m), models.mode_shape(rig, rig.probe2_position_m)
+        col = np.column_stack([p1 * q[:, 0], p1 * q[:, 1], p2 * q[:, 0], p2 * q[:, 1]])
+        return None, col[:, :, None]
+
+    def physical(self, nl, lin):
+        inv_m = float(lin[0]) if len(lin) else float("nan")
+        return {"bending_frequency_hz": float(10 ** nl[0]), "bending_damping_ratio": float(10 ** nl[1]),
+                "modal_mass_kg": float(1.0 / inv_m) if inv_m else float("inf")}
+
+
+@dataclass(frozen=True)
+class ProbeGainOrientation(Effect):
+    """Probe sensitivity error per channel and probe-pair rotation per plane (small-angle)."""
+
+    name: ClassVar[str] = "probe_gain_orientation"
+    description: ClassVar[str] = "probe gain error per channel and orientation error per probe plane"
+
+    def lin_names(self, ctx):
+        return ("gain_xp1", "gain_yp1", "gain_xp2", "gain_yp2", "orientation_p1_rad", "orientation_p2_rad")
+
+    def basis(self, ctx, nl):
+        y = ctx.y_nom_m
+        n = y.shape[0]
+        cols = np.zeros((n, 4, 6))
+        for c in range(4):
+            cols[:, c, c] = y[:, c]
+        for p in range(2):
+            cols[:, 2 * p, 4 + p] = y[:, 2 * p + 1]      # x' = x + delta y
+            cols[:, 2 * p + 1, 4 + p] = -y[:, 2 * p]     # y' = y - delta x
+        return None, cols
+
+    def physical(self, nl, lin):
+        out = {f"gain_error_{ch}": float(g) for ch, g in zip(CHANNELS, lin[:4])}
+        out.update({"orientation_p1_deg": float(np.degrees(lin[4])), "orientation_p2_deg": float(np.degrees(lin[5]))})
+        return out
+
+
+@dataclass(frozen=True)
+class TimingSkew(Effect):
+    """Sampling skew between channels: ``y_c(t - tau_c)``, tau relative to xp1 (derivative regressor)."""
+
+    name: ClassVar[str] = "timing_skew"
+    description: ClassVar[str] = "timing skew between probe channels (relative to xp1)"
+
+    def lin_names(self, ctx):
+        return ("skew_yp1_us", "skew_xp2_us", "skew_yp2_us")
+
+    def basis(self, ctx, nl):
+        v = ctx.v_nom_m_s
+        n = v.shape[0]
+        cols = np.zeros((n, 4, 3))
+        for i, c in enumerate((1, 2, 3)):
+            cols[:, c, i] = -v[:, c] * UNIT_SKEW_S
+        return None, cols
+
+    def physical(self, nl, lin):
+        return {f"skew_{ch}_s": float(v * UNIT_SKEW_S) for ch, v in zip(CHANNELS[1:], lin)}
+
+
+#: The candidate library, in report order.
+LIBRARY: tuple[Effect, ...] = (ResidualUnbalance(), TachometerOffset(), ProbeRunout(), Misalignment(),
+                               BearingCubic(), PedestalFlexibility(), ShaftBending(), ProbeGainOrientation(),
+                               TimingSkew())
+EFFECT_NAMES: tuple[str, ...] = tuple(e.name for e in LIBRARY)
+
+
+def effect_by_name(name: str) -> Effect:
+    for e in LIBRARY:
+        if e.name == name:
+            return e
+    raise KeyError(f"unknown effect {name!r}; known: {', '.join(EFFECT_NAMES)}")

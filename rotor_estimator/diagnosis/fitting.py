@@ -1,0 +1,111 @@
+"""Variable-projection least squares shared by every candidate effect.
+
+The augmented model's probe output is written as
+
+    y ~ y_nom + offset(theta_nl) + J dr + D d + X(theta_nl) theta_lin
+
+with ``J`` the nominal sensitivity to the 8 bearing coefficients, ``D`` one DC column per
+probe, ``X`` the effect's columns and ``offset`` its fixed-gain part. For fixed nonlinear
+parameters ``theta_nl`` the rest is linear and eliminated (Golub & Pereyra's variable
+projection); the nonlinear parameters are found by a grid then
+:func:`scipy.optimize.least_squares`. Evidence: the Bayesian information criterion
+``BIC = n ln(RSS/n) + k ln n`` of the Gaussian output error (smaller is better).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .context import COEFFICIENT_SCALE, FitContext
+
+
+@dataclass(frozen=True)
+class LinearSolution:
+    """Solution of the linear part on a set of rows."""
+
+    dr: np.ndarray            # (8,) coefficient correction, scaled units (times COEFFICIENT_SCALE = SI)
+    dc_m: np.ndarray          # (4,)
+    theta: np.ndarray         # (k,) effect (and extra) linear parameters
+    theta_cov: np.ndarray     # (k, k)
+    rss_m2: float
+    n_obs: int
+    prediction_m: np.ndarray  # (N, 4) full model output incl. DC on all samples
+
+
+def _design(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray:
+    n = ctx.t_s.size
+    dc = np.zeros((n, 4, 4))
+    for c in range(4):
+        dc[:, c, c] = 1.0
+    parts = [ctx.jacobian, dc]
+    if cols is not None and cols.shape[2]:
+        parts.append(cols)
+    return np.concatenate(parts, axis=2)
+
+
+def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | None,
+                 rows: np.ndarray | None = None) -> LinearSolution:
+    """Least squares of ``y - y_nom - offset`` on ``[J, D, cols]`` over ``rows`` (default: ctx.mask)."""
+    rows = ctx.mask if rows is None else rows
+    full = _design(ctx, cols)
+    target = ctx.y_m - ctx.y_nom_m - (0.0 if offset is None else offset)
+    a = full[rows].reshape(-1, full.shape[2])
+    b = target[rows].ravel()
+    norm = np.sqrt((a * a).sum(axis=0))
+    norm[norm == 0] = 1.0
+    an = a / norm
+    ata_inv = np.linalg.pinv(an.T @ an, rcond=1e-12, hermitian=True)  # normal equations, columns unit-normed
+    coef_n = ata_inv @ (an.T @ b)
+    coef = coef_n / norm
+    resid = b - a @ coef
+    rss = float(resid @ resid)
+    n_obs, k_all = a.shape
+    sigma2 = rss / max(n_obs - k_all, 1)
+    cov = ata_inv * sigma2 / np.outer(norm, norm)
+    pred = ctx.y_nom_m + (0.0 if offset is None else offset) + np.einsum("nck,k->nc", full, coef)
+    return LinearSolution(dr=coef[:8], dc_m=coef[8:12], theta=coef[12:], theta_cov=cov[12:, 12:], rss_m2=rss,
+                          n_obs=int(n_obs), prediction_m=pred)
+
+
+class Projector:
+    """Orthogonal projection off the fixed columns ``[J, D, base]`` on ``rows`` (QR computed once)."""
+
+    def __init__(self, ctx: FitContext, base_cols: np.ndarray | None, rows: np.ndarray) -> None:
+        full = _design(ctx, base_cols)
+        a = full[rows].reshape(-1, full.shape[2])
+        norm = np.sqrt((a * a).sum(axis=0))
+        norm[norm == 0] = 1.0
+        self.q, _ = np.linalg.qr(a / norm)
+        self.rows = rows
+        self.base_target = (ctx.y_m - ctx.y_nom_m)[rows].ravel()
+
+    def _perp(self, v: np.ndarray) -> np.ndarray:
+        return v - self.q @ (self.q.T @ v)
+
+    def residual(self, offset: np.ndarray | None, cols: np.ndarray | None) -> np.ndarray:
+        """Residual after eliminating the fixed and the effect's linear parameters."""
+        b = self.base_target if offset is None else self.base_target - offset[self.rows].ravel()
+        b = self._perp(b)
+        if cols is not None and cols.shape[2]:
+            x = self._perp(cols[self.rows].reshape(-1, cols.shape[2]))
+            coef, *_ = np.linalg.lstsq(x, b, rcond=None)
+            b = b - x @ coef
+        return b
+
+
+def bic(rss_m2: float, n_obs: int, n_params: int) -> float:
+    """Bayesian information criterion of a Gaussian output error with unknown variance."""
+    return float(n_obs * np.log(max(rss_m2, 1e-300) / n_obs) + n_params * np.log(n_obs))
+
+
+def held_out_rms(ctx: FitContext, offset, cols) -> float:
+    """Fit the linear part on the first part of the record, return the RMS error on the rest (m)."""
+    sol = solve_linear(ctx, offset, cols, ctx.fit_rows)
+    err = (ctx.y_m - sol.prediction_m)[ctx.test_rows]
+    return float(np.sqrt(np.mean(err ** 2)))
+
+
+def coefficients_after(ctx: FitContext, sol: LinearSolution) -> np.ndarray:
+    """Bearing coefficients (SI) after the joint correction."""
+    return ctx.coefficients + sol.dr * COEFFICIENT_SCALE

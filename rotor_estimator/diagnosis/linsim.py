@@ -1,0 +1,159 @@
+"""Exact-discretization simulation of linear rotor models (the diagnosis's re-simulation engine).
+
+The diagnosis re-simulates the nominal model and its augmentations many times, so it
+uses a different and cheaper scheme than the RK4 data simulator: for a first-order
+model ``dq/dt = A(Omega) q + B u`` (Miller & Howard, Eq. 2 in first-order form, possibly
+augmented with pedestal or modal states) each sample period is advanced exactly,
+
+    q[k+1] = Phi q[k] + Gamma1 (u_s[k] + u_z[k]) + Gamma2 (u_s[k+1] - u_s[k]),
+
+with ``Phi = expm(A h)`` and the first-order-hold input matrices from the block
+exponential ``expm([[A h, B h, 0], [0, 0, I], [0, 0, 0]]) = [[Phi, Gamma1, Gamma2], ...]``.
+Smooth forcing ``u_s`` (imbalance, harmonic forces) is interpolated linearly between
+samples; step forcing ``u_z`` (impact, zero-order hold per :mod:`rotor_estimator.recording`)
+is held. ``A`` may change with speed: it is rebuilt per block of samples (piecewise
+constant speed), cached by speed.
+
+The initial state is the periodic steady state of the smooth forcing at the first
+block's speed (harmonics fitted over the first revolutions), so a recording that
+starts in steady running needs no transient fit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from scipy.linalg import expm
+
+from .._jit import njit
+
+#: Samples per block over which the speed (and so A) is held constant.
+BLOCK_SAMPLES = 256
+
+
+@njit(cache=True)
+def _propagate(phi, g1, g2, block, us, uz, q0, c_out):
+    """Run the FOH/ZOH recursion; returns outputs (N, p) = C q and the states (N, n)."""
+    n_samples = us.shape[0]
+    n = q0.shape[0]
+    m = us.shape[1]
+    p = c_out.shape[0]
+    states = np.empty((n_samples, n))
+    out = np.empty((n_samples, p))
+    for i in range(n):
+        states[0, i] = q0[i]
+    for k in range(n_samples - 1):
+        b = block[k]
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += phi[b, i, j] * states[k, j]
+            for j in range(m):
+                acc += g1[b, i, j] * (us[k, j] + uz[k, j]) + g2[b, i, j] * (us[k + 1, j] - us[k, j])
+            states[k + 1, i] = acc
+    for k in range(n_samples):
+        for r in range(p):
+            acc = 0.0
+            for j in range(n):
+                acc += c_out[r, j] * states[k, j]
+            out[k, r] = acc
+    return out, states
+
+
+def discretize(a: np.ndarray, b: np.ndarray, h_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``Phi, Gamma1, Gamma2`` of the first-order-hold discretization over ``h_s`` seconds."""
+    n, m = b.shape
+    big = np.zeros((n + 2 * m, n + 2 * m))
+    big[:n, :n] = a * h_s
+    big[:n, n:n + m] = b * h_s
+    big[n:n + m, n + m:] = np.eye(m)
+    e = expm(big)
+    return e[:n, :n], e[:n, n:n + m], e[:n, n + m:]
+
+
+@dataclass(frozen=True)
+class SpeedSchedule:
+    """Blocks of piecewise-constant speed: ``block_of_sample`` (N,) index into ``speeds_rad_s``."""
+
+    block_of_sample: np.ndarray
+    speeds_rad_s: np.ndarray
+
+    @classmethod
+    def from_speed(cls, speed_rad_s: np.ndarray, *, block: int = BLOCK_SAMPLES,
+                   tolerance_rad_s: float = 0.5) -> "SpeedSchedule":
+        """Block means of ``speed_rad_s``, merged to one value when they differ by less than the tolerance."""
+        speed = np.asarray(speed_rad_s, dtype=float)
+        n = speed.size
+        idx = np.arange(n) // block
+        means = np.array([speed[idx == i].mean() for i in range(idx.max() + 1)])
+        if np.ptp(means) < tolerance_rad_s:
+            return cls(np.zeros(n, dtype=np.int64), np.array([float(np.mean(speed))]))
+        return cls(idx.astype(np.int64), means)
+
+
+def harmonic_phasors(u: np.ndarray, angle_rad: np.ndarray, n_harmonics: int = 4) -> np.ndarray:
+    """Least-squares phasors ``U_h`` (h = 0..H) with ``u ~ Re(sum_h U_h exp(j h angle))``; shape (H+1, m)."""
+    cols = [np.ones_like(angle_rad)]
+    for h in range(1, n_harmonics + 1):
+        cols += [np.cos(h * angle_rad), np.sin(h * angle_rad)]
+    basis = np.column_stack(cols)
+    coef, *_ = np.linalg.lstsq(basis, u, rcond=None)
+    out = np.zeros((n_harmonics + 1, u.shape[1]), dtype=complex)
+    out[0] = coef[0]
+    for h in range(1, n_harmonics + 1):
+        out[h] = coef[2 * h - 1] - 1j * coef[2 * h]
+    return out
+
+
+def steady_state(a: np.ndarray, b: np.ndarray, phasors: np.ndarray, speed_rad_s: float,
+                 angle0_rad: float) -> np.ndarray:
+    """Periodic steady state at shaft angle ``angle0_rad``: ``sum_h Re((j h Omega I - A)^-1 B U_h e^{j h angle0})``."""
+    n = a.shape[0]
+    q = np.zeros(n)
+    for h, u_h in enumerate(phasors):
+        if not np.any(u_h):
+            continue
+        x_h = np.linalg.solve(1j * h * speed_rad_s * np.eye(n) - a, b @ u_h)
+        q += np.real(x_h * np.exp(1j * h * angle0_rad))
+    return q
+
+
+def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,
+                    schedule: SpeedSchedule, angle_rad: np.ndarray, u_smooth: np.ndarray,
+                    u_step: np.ndarray | None = None, *, steady_start: bool = True,
+                    cache: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Outputs ``C q`` (N, p) and states (N, n) of ``dq/dt = A(Omega) q + B u``.
+
+    ``u_smooth`` (N, m) is first-order held, ``u_step`` (N, m) zero-order held. With
+    ``steady_start`` the first state is the periodic steady state of ``u_smooth`` over
+    the first revolutions (zero otherwise).
+    """
+    n_blocks = schedule.speeds_rad_s.size
+    n, m = b.shape
+    phi = np.empty((n_blocks, n, n))
+    g1 = np.empty((n_blocks, n, m))
+    g2 = np.empty((n_blocks, n, m))
+    a0 = None
+    for i, w in enumerate(schedule.speeds_rad_s):
+        key = round(float(w), 6)
+        if cache is not None and key in cache:
+            phi[i], g1[i], g2[i] = cache[key]
+        else:
+            a_w = build_a(float(w))
+            phi[i], g1[i], g2[i] = discretize(a_w, b, h_s)
+            if cache is not None:
+                cache[key] = (phi[i], g1[i], g2[i])
+        if i == 0:
+            a0 = build_a(float(w))
+    u_smooth = np.ascontiguousarray(u_smooth, dtype=float)
+    u_step = np.zeros_like(u_smooth) if u_step is None else np.ascontiguousarray(u_step, dtype=float)
+    q0 = np.zeros(n)
+    if steady_start and np.any(u_smooth):
+        w0 = float(schedule.speeds_rad_s[0])
+        rev = max(8, int(round(2 * (2 * np.pi / max(w0, 1e-6)) / h_s)))
+        rev = min(rev, u_smooth.shape[0])
+        ph = harmonic_phasors(u_smooth[:rev], angle_rad[:rev])
+        q0 = steady_state(a0, b, ph, w0, float(angle_rad[0]))
+    return _propagate(phi, g1, g2, np.ascontiguousarray(schedule.block_of_sample), u_smooth, u_step, q0,
+                      np.ascontiguousarray(c, dtype=float))

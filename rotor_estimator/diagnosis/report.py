@@ -1,0 +1,173 @@
+"""The diagnosis report: Markdown with PNG figures (matplotlib Agg) and the JSON summary.
+
+Plotting lives here, not in the numerical modules. Figures: residual spectra before and
+after the winning effect (per probe channel), measured vs model orbits (both probe
+planes, last two revolutions), the evidence ranking (delta BIC, log scale).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .api import Diagnosis
+from .residuals import CHANNELS
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_spectra(d: Diagnosis, path: Path) -> None:
+    plt = _plt()
+    ctx = d.ctx
+    fs = ctx.sample_rate_hz
+    fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
+    before = (ctx.y_m - d.nominal_prediction_m)[ctx.mask]
+    after = (ctx.y_m - d.after_fit.prediction_m)[ctx.mask] if d.after_fit else None
+    n = before.shape[0]
+    f = np.fft.rfftfreq(n, 1 / fs)
+    w = np.hanning(n)[:, None]
+    for c, ax in enumerate(axes.ravel()):
+        for e, lab in ((before, "nominal"), (after, f"+ {d.best_effect}")):
+            if e is None:
+                continue
+            spec = np.abs(np.fft.rfft((e - e.mean(axis=0)) * w, axis=0))[:, c] * 2 / w.sum()
+            ax.semilogy(f, spec + 1e-15, lw=0.7, label=lab)
+        ax.set_title(CHANNELS[c])
+        ax.set_xlim(0, min(fs / 2, 12 * ctx.mean_speed_rad_s / (2 * np.pi)))
+        ax.grid(True, alpha=0.3)
+    axes[1, 0].set_xlabel("frequency (Hz)")
+    axes[1, 1].set_xlabel("frequency (Hz)")
+    axes[0, 0].set_ylabel("residual amplitude (m)")
+    axes[0, 0].legend()
+    fig.suptitle("Residual spectra before / after the winning effect")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_orbits(d: Diagnosis, path: Path) -> None:
+    plt = _plt()
+    ctx = d.ctx
+    spr = int(round(2 * np.pi / ctx.mean_speed_rad_s * ctx.sample_rate_hz))
+    idx = np.flatnonzero(ctx.mask)[-2 * spr:]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
+    for p, ax in enumerate(axes):
+        x, y = 2 * p, 2 * p + 1
+        ax.plot(ctx.y_m[idx, x] * 1e6, ctx.y_m[idx, y] * 1e6, ".", ms=2, label="measured")
+        ax.plot(d.nominal_prediction_m[idx, x] * 1e6, d.nominal_prediction_m[idx, y] * 1e6, lw=1, label="nominal model")
+        if d.after_fit:
+            ax.plot(d.after_fit.prediction_m[idx, x] * 1e6, d.after_fit.prediction_m[idx, y] * 1e6, lw=1, ls="--",
+                    label=f"+ {d.best_effect}")
+        ax.set_title(f"probe plane {p + 1}")
+        ax.set_xlabel("x (um)")
+        ax.set_ylabel("y (um)")
+        ax.axis("equal")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle("Orbits, last two revolutions: measured vs model")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_ranking(d: Diagnosis, path: Path) -> None:
+    plt = _plt()
+    fits = d.ranking.singles
+    names = [f.name for f in fits][::-1]
+    vals = [max(f.delta_bic, 0.1) for f in fits][::-1]
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.barh(names, vals, color=["tab:red" if n == d.best_effect else "tab:gray" for n in names])
+    ax.axvline(d.summary()["decision_rule"]["min_delta_bic"], color="k", ls="--", lw=0.8, label="significance")
+    ax.set_xscale("log")
+    ax.set_xlabel("evidence: BIC(nominal) - BIC(nominal + effect)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _fmt_um(v: float) -> str:
+    return f"{v * 1e6:.3f}"
+
+
+def markdown(d: Diagnosis, summary: dict) -> str:
+    w = summary["where"]
+    lines = ["# Sim-to-real gap diagnosis", ""]
+    lines.append(f"**Verdict: `{summary['best_effect']}`**"
+                 + (f" (second effect: `{summary['second_effect']}`)" if summary["second_effect"] != "none" else ""))
+    lines.append("")
+    lines.append(f"Residual RMS {_fmt_um(summary['residual_rms_before'])} um before, "
+                 f"{_fmt_um(summary['residual_rms_after'])} um after; shrink ratio {summary['shrink_ratio']:.2f}; "
+                 f"noise {_fmt_um(summary['noise_std_m'])} um (gap ratio {w['gap_ratio']:.2f}).")
+    lines += ["", "## 1. Where the gap lies", ""]
+    lines.append(f"Dominant channel **{w['dominant_channel']}**, dominant band **{w['dominant_band']}**.")
+    lines += ["", "| band | share of excess power | RMS (um) |", "|---|---|---|"]
+    for r in w["bands"]:
+        lines.append(f"| {r['band']} | {100 * r['share']:.1f} % | {_fmt_um(r['rms_m'])} |")
+    lines += ["", "| channel | RMS (um) | excess over noise (um) | share |", "|---|---|---|---|"]
+    for r in w["channels"]:
+        lines.append(f"| {r['channel']} | {_fmt_um(r['rms_m'])} | {_fmt_um(r['excess_rms_m'])} | {100 * r['share']:.1f} % |")
+    if w["nonsync_peaks"]:
+        lines.append("")
+        lines.append("Non-synchronous peaks: " + ", ".join(f"{p['frequency_hz']:.1f} Hz" for p in w["nonsync_peaks"]))
+    lines += ["", "Whirl (orders 1X-3X, per plane, forward/backward amplitude in um):", ""]
+    for plane, v in w["whirl"].items():
+        lines.append(f"- {plane}: " + ", ".join(f"{k} {_fmt_um(o['forward_m'])}/{_fmt_um(o['backward_m'])}"
+                                                 for k, o in v["orders"].items()))
+    lines += ["", "Time segments:", ""]
+    for r in w["time"]:
+        lines.append(f"- {r['segment']}: {_fmt_um(r['rms_m'])} um over {r['samples']} samples")
+    inn = summary["innovations"]
+    lines += ["", f"EKF innovations: NIS mean {inn.get('nis_mean', float('nan')):.2f} (expected 4, "
+                  f"{'consistent' if inn.get('consistent') else 'INCONSISTENT'}), "
+                  f"{'white' if inn.get('white') else 'NOT white'} (Ljung-Box min p "
+                  f"{min(inn.get('ljung_box_p', [float('nan')])):.2g}).", ""]
+    lines += ["![residual spectra](spectra.png)", "", "![orbits](orbits.png)", ""]
+    lines += ["## 2. Which effect", "", "| effect | delta BIC | params | held-out RMS (um) | residual RMS (um) |",
+              "|---|---|---|---|---|"]
+    for r in summary["ranking"]:
+        lines.append(f"| {r['effect']} | {r['delta_bic']:.1f} | {r['n_params']} | {_fmt_um(r['held_out_rms_m'])} | "
+                     f"{_fmt_um(r['residual_rms_m'])} |")
+    lines.append("")
+    lines.append(f"Nominal held-out RMS {_fmt_um(summary['decision_rule']['nominal_held_out_rms_m'])} um; an effect "
+                 f"counts when delta BIC >= {summary['decision_rule']['min_delta_bic']} and it predicts the held-out "
+                 "last 40 % of the record better than the nominal model.")
+    for key in ("best_effect_fit", "second_effect_fit"):
+        fit = summary.get(key)
+        if fit:
+            lines += ["", f"Fitted parameters of `{fit['name']}` (value +- std):", ""]
+            for k, v in fit["parameters"].items():
+                lines.append(f"- {k}: {v['value']:.6g} +- {v['std']:.2g}")
+    lines += ["", "![ranking](ranking.png)", "", "## 3. How far it shrinks", "",
+              "| model | RMS (um) | 1X | 2X | 3X | non-sync | broadband | output NIS | held-out (um) | kxx | kyy | cxx | cyy |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in summary["table"]:
+        b, c = r["excess_band_rms_m"], r["coefficients"]
+        lines.append(f"| {r['model']} | {_fmt_um(r['residual_rms_m'])} | {_fmt_um(b['1X'])} | {_fmt_um(b['2X'])} | "
+                     f"{_fmt_um(b['3X'])} | {_fmt_um(b['nonsync_peaks'])} | {_fmt_um(b['broadband'])} | "
+                     f"{r['output_nis_mean']:.2f} | {_fmt_um(r['held_out_rms_m'])} | {c['kxx_N_per_m']:.4g} | "
+                     f"{c['kyy_N_per_m']:.4g} | {c['cxx_N_s_per_m']:.4g} | {c['cyy_N_s_per_m']:.4g} |")
+    lines += ["", "Band columns are RMS in excess of the noise (um); output NIS is the mean of "
+                  "sum_c e_c^2 / sigma_c^2 (4 when the model explains the data to the noise)."]
+    return "\n".join(lines) + "\n"
+
+
+def write_report(d: Diagnosis, out_dir: str | Path) -> dict:
+    """Write ``report.md``, ``summary.json`` and the PNG figures into ``out_dir``; return the summary."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = d.summary()
+    plot_spectra(d, out / "spectra.png")
+    plot_orbits(d, out / "orbits.png")
+    plot_ranking(d, out / "ranking.png")
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    (out / "report.md").write_text(markdown(d, summary))
+    return summary
