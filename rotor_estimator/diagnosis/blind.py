@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import BearingCoefficients, RigConfig, RigFile, load_rig_file
+from ..config import RigFile, load_rig_file
 from ..recording import RigRecording
 from ..simulator import Impact
 from .effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
