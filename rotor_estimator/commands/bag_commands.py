@@ -133,17 +133,31 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from ..config import load_rig_file
     from ..simulator import paper_scenario, simulate
 
+    from ..simulator import MILLER_HOWARD_IMPACT, Impact
+
     rig = load_rig_file(args.rig).rig
     scenario = paper_scenario(args.scenario)
     if args.duration is not None:
         scenario = dataclasses.replace(scenario, duration_s=float(args.duration))
+    if args.speed_end_rpm is not None:  # a linear coast-down or run-up over the whole record
+        scenario = dataclasses.replace(scenario, speed_end_rad_s=float(args.speed_end_rpm) * 2 * np.pi / 60,
+                                       name=f"{scenario.name}, ramp to {args.speed_end_rpm:g} rpm")
+    if args.impacts is not None:  # the paper's 515 N, 50 us pulse, alternating y and x, evenly spaced
+        if args.impacts < 0:
+            raise InputError("--impacts must be >= 0")
+        start, span = scenario.discard_initial_s, scenario.duration_s - scenario.discard_initial_s
+        hammer = MILLER_HOWARD_IMPACT
+        impacts = tuple(Impact(start + span * (i + 0.5) / args.impacts, hammer.duration_s,
+                               0.0 if i % 2 == 0 else -hammer.force_y_n, hammer.force_y_n if i % 2 == 0 else 0.0)
+                        for i in range(args.impacts))
+        scenario = dataclasses.replace(scenario, impacts=impacts, name=f"{scenario.name}, {args.impacts} impacts")
     if Path(args.out).exists():
         raise BagError(f"bag {args.out} already exists; remove it or choose another output path")
     rec = simulate(rig, scenario, seed=args.seed).recording
     rec.meta.update({"command": "rotor-estimator simulate", "duration_s": scenario.duration_s})
     write_input_bag(args.out, rec, block_size=args.block_size)
     print(f"wrote {args.out}: {len(rec)} samples per probe plane at {rig.sample_rate_hz:g} Hz, "
-          f"{rec.pulse_stamps_ns.size} keyphasor pulses, scenario {args.scenario}, seed {args.seed}")
+          f"{rec.pulse_stamps_ns.size} keyphasor pulses, scenario {scenario.name}, seed {args.seed}")
     return 0
 
 
@@ -296,6 +310,12 @@ def add_parsers(subparsers: Any) -> None:
                    help="Miller & Howard's cases (default imbalance+impact)")
     p.add_argument("--duration", type=float, default=None,
                    help="simulated time from rest, s (default 0.125, the paper's; the first 0.03 s are dropped)")
+    p.add_argument("--speed-end-rpm", type=float, default=None,
+                   help="ramp the speed linearly from the rig's speed to this over the record (a coast-down "
+                        "or run-up; e.g. --scenario imbalance --duration 2 --speed-end-rpm 3000)")
+    p.add_argument("--impacts", type=int, default=None,
+                   help="replace the scenario's impacts by N hammer pulses (515 N, 50 us) alternating y and x, "
+                        "evenly spaced over the recorded time")
     p.add_argument("--seed", type=int, default=1, help="noise seed (default 1)")
     p.add_argument("--block-size", type=int, default=200, help="samples per probe message (default 200)")
     p.add_argument("--out", type=Path, required=True, help="new bag directory")

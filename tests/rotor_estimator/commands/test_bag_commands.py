@@ -152,3 +152,18 @@ def test_import_rejects_bad_signals_with_a_clear_message(tmp_path, capsys, chang
     code, _, err = run(["import", str(tmp_path / "signals.npz"), "--out", str(tmp_path / "bag")], capsys)
     assert code == 2 and message in err and "Traceback" not in err
     assert not (tmp_path / "bag").exists()
+
+
+def test_simulated_coastdown_with_impacts_has_falling_pulse_rate_and_alternating_hammer(tmp_path, capsys):
+    """--speed-end-rpm ramps the speed (keyphasor periods grow); --impacts N alternates y and x pulses."""
+    bag = tmp_path / "coastdown"
+    code, out, err = run(["simulate", "--scenario", "imbalance", "--duration", "0.3", "--speed-end-rpm", "6000",
+                          "--impacts", "2", "--out", str(bag)], capsys)
+    assert code == 0, err
+    rec = read_input_bag(bag)
+    periods = np.diff(rec.pulse_stamps_ns)
+    assert periods[-1] > 2 * periods[0]
+    hits = np.flatnonzero(np.any(rec.impact_force_n != 0, axis=1))
+    assert len(hits) == 2
+    assert rec.impact_force_n[hits[0], 1] == -515.0 and rec.impact_force_n[hits[0], 0] == 0.0
+    assert rec.impact_force_n[hits[1], 0] == 515.0 and rec.impact_force_n[hits[1], 1] == 0.0
