@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from ._forcing import add_imbalance_force
 from ._jit import njit
 
 STATUS_UPDATED = 0
@@ -44,20 +45,13 @@ def _stage(q, r, t, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wi
     theta = angle0 + omega0 * t + 0.5 * alpha * t * t
     omega = omega0 + alpha * t
     # generalized force, Eq. 5 (imbalance following the shaft angle) plus the impact
-    f0 = wimp[0] * fimp[0]
-    f1 = wimp[0] * fimp[1]
-    f2 = wimp[1] * fimp[0]
-    f3 = wimp[1] * fimp[1]
-    for i in range(moments.shape[0]):
-        a = theta + phases[i]
-        ca = math.cos(a)
-        sa = math.sin(a)
-        fx = moments[i] * (omega * omega * ca + alpha * sa)
-        fy = moments[i] * (omega * omega * sa - alpha * ca)
-        f0 += wimb[0, i] * fx
-        f1 += wimb[0, i] * fy
-        f2 += wimb[1, i] * fx
-        f3 += wimb[1, i] * fy
+    force = np.empty(4)
+    force[0] = wimp[0] * fimp[0]
+    force[1] = wimp[0] * fimp[1]
+    force[2] = wimp[1] * fimp[0]
+    force[3] = wimp[1] * fimp[1]
+    add_imbalance_force(theta, omega, alpha, moments, phases, wimb, force)
+    f0, f1, f2, f3 = force[0], force[1], force[2], force[3]
     kxx, kxy, kyx, kyy = r[0], r[1], r[2], r[3]
     cxx, cxy, cyx, cyy = r[4], r[5], r[6], r[7]
     v0, v1, v2, v3 = q[0], q[1], q[2], q[3]

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._forcing import add_imbalance_force
 from ._jit import njit
 from .config import BearingCoefficients, RigConfig
 from .errors import ConfigError
@@ -130,16 +131,7 @@ def _rhs(t, q, minv, gyro, kmat, cmat, moments, phases, wimb, wimp, omega0, alph
     theta = omega0 * t + 0.5 * alpha * t * t
     omega = omega0 + alpha * t
     force = np.zeros(4)
-    for i in range(moments.shape[0]):
-        a = theta + phases[i]
-        ca = math.cos(a)
-        sa = math.sin(a)
-        fx = moments[i] * (omega * omega * ca + alpha * sa)
-        fy = moments[i] * (omega * omega * sa - alpha * ca)
-        force[0] += wimb[0, i] * fx
-        force[1] += wimb[0, i] * fy
-        force[2] += wimb[1, i] * fx
-        force[3] += wimb[1, i] * fy
+    add_imbalance_force(theta, omega, alpha, moments, phases, wimb, force)
     force[0] += wimp[0] * fimp[0]
     force[1] += wimp[0] * fimp[1]
     force[2] += wimp[1] * fimp[0]
