@@ -24,7 +24,8 @@ import msg_adapters as ma
 from .bagio import OutputBagWriter, _open_writer, _tag, bag_topics, iter_bag_messages
 from .errors import BagError, InputError
 from .flexible.description import RotorDescription
-from .virtual_sensing import LeaveOneOutReport, SensorAligner, StationEstimate
+from .virtual_sensing import LeaveOneOutReport, StationEstimate
+from .virtual_sensing_stream import SensorAligner
 
 __all__ = ["SensorData", "write_sensor_bag", "read_sensor_bag", "write_estimates_bag", "KEYPHASOR_TOPIC",
            "LEAVE_ONE_OUT_TOPIC"]
@@ -121,7 +122,7 @@ def read_sensor_bag(path: str | Path, rotor: RotorDescription, *, prefix: str = 
                     keyphasor_topic: str = KEYPHASOR_TOPIC, match_tolerance_fraction: float = 0.25,
                     reorder_window_s: float = 1.0, fill_gaps: bool = True) -> SensorData:
     """Decode a multi-sensor bag into arrays, aligning sensors by stamp with the live
-    node's :class:`~rotor_estimator.virtual_sensing.SensorAligner` (same rules, same
+    node's :class:`~rotor_estimator.virtual_sensing_stream.SensorAligner` (same rules, same
     counters). With ``fill_gaps``, samples missing on every sensor become NaN rows on the
     sample grid (``counters['gap_samples']``), so rows are consecutive samples.
     Raises :class:`BagError` if a sensor topic is missing or has another type."""

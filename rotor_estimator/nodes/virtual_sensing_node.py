@@ -4,7 +4,7 @@ Declares its parameters (all in :data:`PARAMETERS`, with unit and default), subs
 one topic per sensor of the rotor description (``<sensor_topic_prefix>/<sensor name>``,
 ``sensor_msgs/msg/PointCloud2`` blocks, see :mod:`msg_adapters.stations`) and to the
 keyphasor (``sensor_msgs/msg/TimeReference``), and runs
-:class:`~rotor_estimator.virtual_sensing.VirtualSensingPipeline` (the same alignment and
+:class:`~rotor_estimator.virtual_sensing_stream.VirtualSensingPipeline` (the same alignment and
 per-sample filter step as ``rotor-estimator virtual-sensing``). Publishes:
 
 * ``~/stations/<station>`` (``sensor_msgs/msg/JointState``): ``x_m y_m vx_m_s vy_m_s
@@ -32,8 +32,8 @@ import msg_adapters as ma
 from .spin import run_node
 from ..errors import ConfigError, InputError
 from ..flexible import build_state_space, load_rotor_description
-from ..virtual_sensing import (FILTERS, PipelineOptions, VirtualSensingConfig, VirtualSensingPipeline,
-                               resolve_stations)
+from ..virtual_sensing import FILTERS, VirtualSensingConfig, resolve_stations
+from ..virtual_sensing_stream import PipelineOptions, VirtualSensingPipeline
 
 __all__ = ["PARAMETERS", "ParamSpec", "pipeline_from_parameters", "VirtualSensingNode", "main"]
 

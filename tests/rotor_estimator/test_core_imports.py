@@ -7,7 +7,8 @@ CORE_MODULES = [
     "rotor_estimator.ekf_kernel", "rotor_estimator.ekf_reference", "rotor_estimator.crlb",
     "rotor_estimator.offline", "rotor_estimator.reproduce", "rotor_estimator.tachometer",
     "rotor_estimator.alignment", "rotor_estimator.recording", "rotor_estimator.pipeline",
-    "rotor_estimator.linear_filters", "rotor_estimator.virtual_sensing", "rotor_estimator.flexible",
+    "rotor_estimator.linear_filters", "rotor_estimator.virtual_sensing", "rotor_estimator.virtual_sensing_stream",
+    "rotor_estimator.flexible",
     "rotor_estimator.identification.methods", "rotor_estimator.identification.planner",
     "rotor_estimator.identification.identifiability", "rotor_estimator.diagnosis",
 ]

@@ -178,7 +178,7 @@ def _feed(pipe, ss, stamps, z, block=50, seed=0, keep=None):
 def test_live_pipeline_on_shuffled_blocks_equals_offline_estimate_stations(rig):
     """Same code path: the streaming pipeline (alignment, causal keyphasor fit, per-sample
     step) gives the offline estimates; the only difference is the shaft angle's fit."""
-    from rotor_estimator.virtual_sensing import VirtualSensingPipeline
+    from rotor_estimator.virtual_sensing_stream import VirtualSensingPipeline
     ss, sim = rig
     stamps, pulses = _stamped(ss, sim)
     pipe = VirtualSensingPipeline(ss)
@@ -196,7 +196,7 @@ def test_live_pipeline_on_shuffled_blocks_equals_offline_estimate_stations(rig):
 
 
 def test_pipeline_predicts_over_missing_samples_and_drops_late_ones(rig):
-    from rotor_estimator.virtual_sensing import PipelineOptions, VirtualSensingPipeline
+    from rotor_estimator.virtual_sensing_stream import PipelineOptions, VirtualSensingPipeline
     ss, sim = rig
     stamps, pulses = _stamped(ss, sim)
     keep = np.ones(len(stamps), bool)
@@ -212,7 +212,7 @@ def test_pipeline_predicts_over_missing_samples_and_drops_late_ones(rig):
 
 
 def test_samples_before_any_keyphasor_pulse_are_dropped_and_counted(rig):
-    from rotor_estimator.virtual_sensing import VirtualSensingPipeline
+    from rotor_estimator.virtual_sensing_stream import VirtualSensingPipeline
     ss, sim = rig
     stamps, pulses = _stamped(ss, sim)
     pipe = VirtualSensingPipeline(ss)
@@ -222,7 +222,7 @@ def test_samples_before_any_keyphasor_pulse_are_dropped_and_counted(rig):
 
 
 def test_sensor_aligner_counts_duplicates_and_missing_sensors():
-    from rotor_estimator.virtual_sensing import SensorAligner
+    from rotor_estimator.virtual_sensing_stream import SensorAligner
     al = SensorAligner(["a", "b"], period_ns=1000.0, reorder_window_ns=5000)
     al.add_block("a", np.arange(0, 10_000, 1000), np.zeros((10, 2)))
     al.add_block("a", np.array([3000]), np.ones((1, 2)))  # duplicate: the first copy wins
