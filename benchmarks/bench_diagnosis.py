@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Blind benchmark of the sim-to-real diagnosis (a script, not a test; ~10 min for 36 cases on 2 cores).
+"""Blind benchmark of the sim-to-real diagnosis (a script, not a test; ~15 min for 36 cases on 2 cores).
 
     .venv/bin/python benchmarks/bench_diagnosis.py --cases 36 --seed 2024 [--out DIR] [--jobs 2] [--no-ross] [--json]
 
@@ -14,6 +14,10 @@ import warnings
 
 
 def main(argv: list[str] | None = None) -> int:
+    import os
+
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one BLAS thread per worker
+        os.environ.setdefault(k, "1")
     from rotor_estimator.diagnosis.bench import format_score, run
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -217,8 +217,6 @@ def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConf
             continue
         if best is None or res.cost < best.cost:
             best = res
-        if best is not None and np.sqrt(2 * best.cost / best.fun.size) * 1e-6 < 1.5 * rig.noise_std_m:
-            break
     if best is None:
         raise InputError("the nominal output-error fit failed from both the EKF estimate and r0")
     r_hat = best.x * COEFFICIENT_SCALE

@@ -23,7 +23,7 @@ import numpy as np
 from ..model import imbalance_force
 from . import models
 from .context import FitContext
-from .linsim import simulate_linear
+from .linsim import simulate_cubic, simulate_linear
 
 CHANNELS = ("xp1", "yp1", "xp2", "yp2")
 UNIT_UNBALANCE_KG_M = 1e-6   # 1 g*mm
@@ -52,6 +52,10 @@ class Effect:
 
     def nl_bounds(self, ctx: FitContext) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(0), np.zeros(0)
+
+    def refine_starts(self, ctx: FitContext) -> list[np.ndarray]:
+        """Extra nonlinear starting points of the joint refit with the coefficients (structural effects)."""
+        return []
 
     def basis(self, ctx: FitContext, nl: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
         raise NotImplementedError
@@ -184,24 +188,70 @@ class Misalignment(Effect):
 
 @dataclass(frozen=True)
 class BearingCubic(Effect):
-    """Bearing stiffness nonlinearity ``f = -k3 x^3`` (x and y, both bearings), first-order perturbation."""
+    """Bearing stiffness nonlinearity ``f = -k3 x^3`` (x and y, both bearings), simulated exactly.
+
+    ``k3x, k3y`` are nonlinear parameters: the rigid model of Eq. 2 is re-simulated with
+    the cubic bearing force (:func:`.linsim.simulate_cubic`, nonlinear periodic start),
+    so a hardening that reshapes the impact transient and adds 3X is modelled at any
+    strength. The search starts from the first-order estimate (the response to
+    ``-k3 z_nom^3`` fitted linearly).
+    """
 
     name: ClassVar[str] = "bearing_cubic"
     description: ClassVar[str] = "cubic bearing stiffness (hardening/softening), k3x and k3y"
+    nl_names: ClassVar[tuple[str, ...]] = ("k3x_1e15_N_per_m3", "k3y_1e15_N_per_m3")
+    #: Scale of the nonlinear parameters (order one for a realistic hardening), N/m^3.
+    nl_unit: ClassVar[float] = 1e15
 
     def lin_names(self, ctx):
-        return ("k3x_1e12_N_per_m3", "k3y_1e12_N_per_m3")
+        return ()
 
-    def basis(self, ctx, nl):
-        z = ctx.z_nom_m - ctx.z_nom_m[ctx.mask].mean(axis=0)
+    def _first_order_columns(self, ctx):
+        z = ctx.z_nom_m
         fx = np.zeros_like(z)
         fy = np.zeros_like(z)
         fx[:, [0, 2]] = -UNIT_CUBIC_N_PER_M3 * z[:, [0, 2]] ** 3
         fy[:, [1, 3]] = -UNIT_CUBIC_N_PER_M3 * z[:, [1, 3]] ** 3
-        return None, np.stack([ctx.response(fx), ctx.response(fy)], axis=2)
+        return np.stack([ctx.response(fx), ctx.response(fy)], axis=2)
+
+    def nl_grid(self, ctx):
+        cols = self._first_order_columns(ctx)[ctx.mask]
+        e = ctx.residual_m[ctx.mask]
+        a = (cols - cols.mean(axis=0)).reshape(-1, 2)
+        est, *_ = np.linalg.lstsq(a, (e - e.mean(axis=0)).ravel(), rcond=None)
+        est = est * UNIT_CUBIC_N_PER_M3 / self.nl_unit
+        lo, hi = self.nl_bounds(ctx)
+        est = np.clip(est, 0.9 * lo, 0.9 * hi)
+        return [est, 0.5 * est, np.zeros(2)]
+
+    def nl_bounds(self, ctx):
+        return np.full(2, -1e4), np.full(2, 1e4)
+
+    def refine_starts(self, ctx):
+        # the nominal fit absorbs a hardening into stiffer coefficients, so the first pass about
+        # them sees little of it: the joint refit also starts from an order-of-magnitude hardening
+        return [np.ones(2), 10.0 * np.ones(2)]
+
+    def _simulate(self, ctx, k3_n_per_m3: np.ndarray) -> np.ndarray:
+        mats, r = ctx.mats, ctx.coefficients
+        k3 = np.array([k3_n_per_m3[0], k3_n_per_m3[1]] * 2)
+        out, _ = simulate_cubic(lambda w: models.rigid_state_matrix(mats, r, w), models.rigid_input(mats),
+                                models.rigid_output(mats), ctx.period_s, ctx.schedule, ctx.shaft.angle_rad,
+                                ctx.known_smooth_n, ctx.known_step_n, k3, 4,
+                                cache=ctx._cache.setdefault("cubic_discretization", {}))
+        return out[:, :4]
+
+    def basis(self, ctx, nl):
+        ref = ctx._cache.get("cubic_zero")
+        if ref is None:
+            ref = ctx._cache["cubic_zero"] = self._simulate(ctx, np.zeros(2))
+        y = self._simulate(ctx, np.asarray(nl, float) * self.nl_unit)
+        if not np.all(np.isfinite(y)):
+            y = np.full_like(y, np.nan)
+        return y - ref, np.zeros((ctx.t_s.size, 4, 0))
 
     def physical(self, nl, lin):
-        return {"k3x_N_per_m3": float(lin[0] * UNIT_CUBIC_N_PER_M3), "k3y_N_per_m3": float(lin[1] * UNIT_CUBIC_N_PER_M3)}
+        return {"k3x_N_per_m3": float(nl[0] * self.nl_unit), "k3y_N_per_m3": float(nl[1] * self.nl_unit)}
 
 
 @dataclass(frozen=True)
@@ -217,11 +267,14 @@ class PedestalFlexibility(Effect):
 
     def nl_grid(self, ctx):
         return [np.array([np.log10(f), np.log10(0.05), np.log10(m)])
-                for f in (100.0, 200.0, 400.0, 800.0, 1600.0) for m in (0.5, 2.0, 8.0)]
+                for f in (50.0, 100.0, 200.0, 400.0, 800.0, 1600.0) for m in (0.5, 2.0, 8.0)]
 
     def nl_bounds(self, ctx):
         fmax = 0.45 * ctx.sample_rate_hz
         return np.array([np.log10(20.0), -3.0, -1.5]), np.array([np.log10(fmax), 0.0, 2.0])
+
+    def refine_starts(self, ctx):
+        return [np.array([np.log10(f), np.log10(0.05), np.log10(2.0)]) for f in (60.0, 120.0, 250.0, 500.0)]
 
     @staticmethod
     def housing(nl: np.ndarray) -> tuple[float, float, float]:
@@ -276,6 +329,9 @@ class ShaftBending(Effect):
     def nl_bounds(self, ctx):
         return np.array([np.log10(20.0), -3.0]), np.array([np.log10(0.45 * ctx.sample_rate_hz), -0.3])
 
+    def refine_starts(self, ctx):
+        return [np.array([np.log10(f), np.log10(0.02)]) for f in (80.0, 120.0, 180.0, 270.0, 400.0, 600.0, 900.0)]
+
     def basis(self, ctx, nl):
         smooth, step = modal_forces(ctx)
         a = models.modal_state_matrix(10 ** nl[0], 10 ** nl[1])
@@ -320,26 +376,56 @@ class ProbeGainOrientation(Effect):
         return out
 
 
+def delayed(y_m: np.ndarray, v_m_s: np.ndarray, delay_s: float, period_s: float) -> np.ndarray:
+    """``y(t - delay)`` of a sampled signal by cubic Hermite interpolation on samples and derivatives (N,)."""
+    n = y_m.size
+    shift = delay_s / period_s
+    k0 = np.arange(n) - int(np.ceil(shift))
+    u = (np.arange(n) - shift) - k0
+    k0 = np.clip(k0, 0, n - 2)
+    p0, p1, m0, m1 = y_m[k0], y_m[k0 + 1], v_m_s[k0] * period_s, v_m_s[k0 + 1] * period_s
+    u2, u3 = u * u, u * u * u
+    return ((2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1)
+
+
 @dataclass(frozen=True)
 class TimingSkew(Effect):
-    """Sampling skew between channels: ``y_c(t - tau_c)``, tau relative to xp1 (derivative regressor)."""
+    """Sampling skew between channels: ``y_c(t - tau_c)``, tau relative to xp1 (exact delay, not a derivative).
+
+    The delays are nonlinear parameters: the skewed channel is the nominal output delayed
+    by cubic Hermite interpolation on the nominal probe displacement and velocity, so a
+    delay of a sizeable fraction of a revolution is modelled as well as a small one.
+    The search starts from the derivative (first-order) estimate ``tau = -<e, v>/<v, v>``.
+    """
 
     name: ClassVar[str] = "timing_skew"
     description: ClassVar[str] = "timing skew between probe channels (relative to xp1)"
+    nl_names: ClassVar[tuple[str, ...]] = ("skew_yp1_us", "skew_xp2_us", "skew_yp2_us")
 
     def lin_names(self, ctx):
-        return ("skew_yp1_us", "skew_xp2_us", "skew_yp2_us")
+        return ()
+
+    def nl_grid(self, ctx):
+        v = ctx.v_nom_m_s[ctx.mask]
+        e = ctx.residual_m[ctx.mask]
+        tau = np.array([-(e[:, c] @ v[:, c]) / max(float(v[:, c] @ v[:, c]), 1e-300) for c in (1, 2, 3)])
+        bound = self.nl_bounds(ctx)[1][0]
+        return [np.clip(tau / UNIT_SKEW_S, -0.9 * bound, 0.9 * bound), np.zeros(3)]
+
+    def nl_bounds(self, ctx):
+        b = 0.25 * 2 * np.pi / max(ctx.mean_speed_rad_s, 1.0) / UNIT_SKEW_S  # a quarter revolution
+        return np.full(3, -b), np.full(3, b)
 
     def basis(self, ctx, nl):
-        v = ctx.v_nom_m_s
-        n = v.shape[0]
-        cols = np.zeros((n, 4, 3))
+        y, v = ctx.y_nom_m, ctx.v_nom_m_s
+        off = np.zeros_like(y)
         for i, c in enumerate((1, 2, 3)):
-            cols[:, c, i] = -v[:, c] * UNIT_SKEW_S
-        return None, cols
+            if nl[i] != 0.0:
+                off[:, c] = delayed(y[:, c], v[:, c], nl[i] * UNIT_SKEW_S, ctx.period_s) - y[:, c]
+        return off, np.zeros((y.shape[0], 4, 0))
 
     def physical(self, nl, lin):
-        return {f"skew_{ch}_s": float(v * UNIT_SKEW_S) for ch, v in zip(CHANNELS[1:], lin)}
+        return {f"skew_{ch}_s": float(v * UNIT_SKEW_S) for ch, v in zip(CHANNELS[1:], nl)}
 
 
 #: The candidate library, in report order.

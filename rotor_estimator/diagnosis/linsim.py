@@ -157,3 +157,91 @@ def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np
         q0 = steady_state(a0, b, ph, w0, float(angle_rad[0]))
     return _propagate(phi, g1, g2, np.ascontiguousarray(schedule.block_of_sample), u_smooth, u_step, q0,
                       np.ascontiguousarray(c, dtype=float))
+
+
+@njit(cache=True)
+def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0):
+    """The FOH/ZOH recursion with a cubic generalized force ``f_j = -k3_j z_j^3``, ``z = q[z0:z0+m]``.
+
+    The nonlinear force is first-order held too, its end value from a predictor step
+    (Heun): ``q+ = Phi q + G1 (u + f(q)) + G2 du``, then ``q[k+1] = q+ + G2 (f(q+) - f(q))``.
+    """
+    n_samples = us.shape[0]
+    n = q0.shape[0]
+    m = us.shape[1]
+    p = c_out.shape[0]
+    states = np.empty((n_samples, n))
+    out = np.empty((n_samples, p))
+    fk = np.empty(m)
+    f1 = np.empty(m)
+    pred = np.empty(n)
+    for i in range(n):
+        states[0, i] = q0[i]
+    for k in range(n_samples - 1):
+        b = block[k]
+        for j in range(m):
+            z = states[k, z0 + j]
+            fk[j] = -k3[j] * z * z * z
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += phi[b, i, j] * states[k, j]
+            for j in range(m):
+                acc += g1[b, i, j] * (us[k, j] + uz[k, j] + fk[j]) + g2[b, i, j] * (us[k + 1, j] - us[k, j])
+            pred[i] = acc
+        for j in range(m):
+            z = pred[z0 + j]
+            f1[j] = -k3[j] * z * z * z
+        for i in range(n):
+            acc = pred[i]
+            for j in range(m):
+                acc += g2[b, i, j] * (f1[j] - fk[j])
+            states[k + 1, i] = acc
+    for k in range(n_samples):
+        for r in range(p):
+            acc = 0.0
+            for j in range(n):
+                acc += c_out[r, j] * states[k, j]
+            out[k, r] = acc
+    return out, states
+
+
+def simulate_cubic(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,
+                   schedule: SpeedSchedule, angle_rad: np.ndarray, u_smooth: np.ndarray, u_step: np.ndarray,
+                   k3: np.ndarray, z_index: int, *, preroll_s: float = 0.05,
+                   cache: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`simulate_linear` plus the cubic force ``-k3 z^3`` on states ``z_index..z_index+m``.
+
+    The nonlinear periodic state is reached by a pre-roll of ``preroll_s`` seconds driven
+    by the steady harmonic part of ``u_smooth`` (fitted over the first revolutions),
+    started from the linear steady state; the pre-roll is dropped from the output.
+    """
+    n_blocks = schedule.speeds_rad_s.size
+    n, m = b.shape
+    phi = np.empty((n_blocks, n, n))
+    g1 = np.empty((n_blocks, n, m))
+    g2 = np.empty((n_blocks, n, m))
+    for i, w in enumerate(schedule.speeds_rad_s):
+        key = round(float(w), 6)
+        if cache is not None and key in cache:
+            phi[i], g1[i], g2[i] = cache[key]
+        else:
+            phi[i], g1[i], g2[i] = discretize(build_a(float(w)), b, h_s)
+            if cache is not None:
+                cache[key] = (phi[i], g1[i], g2[i])
+    w0 = float(schedule.speeds_rad_s[0])
+    n_pre = int(round(preroll_s / h_s))
+    rev = min(max(8, int(round(2 * (2 * np.pi / max(w0, 1e-6)) / h_s))), u_smooth.shape[0])
+    ph = harmonic_phasors(u_smooth[:rev], angle_rad[:rev])
+    ang_pre = angle_rad[0] - w0 * h_s * np.arange(n_pre, 0, -1)
+    u_pre = np.zeros((n_pre, m))
+    for hh in range(ph.shape[0]):
+        u_pre += np.real(ph[hh][None, :] * np.exp(1j * hh * ang_pre)[:, None])
+    q0 = steady_state(build_a(w0), b, ph, w0, float(ang_pre[0])) if n_pre else np.zeros(n)
+    us = np.ascontiguousarray(np.vstack([u_pre, u_smooth]), dtype=float)
+    uz = np.ascontiguousarray(np.vstack([np.zeros((n_pre, m)), u_step]), dtype=float)
+    block = np.ascontiguousarray(np.concatenate([np.zeros(n_pre, dtype=np.int64),
+                                                 schedule.block_of_sample.astype(np.int64)]))
+    out, states = _propagate_cubic(phi, g1, g2, block, us, uz, q0, np.ascontiguousarray(c, dtype=float),
+                                   np.ascontiguousarray(k3, dtype=float), z_index)
+    return out[n_pre:], states[n_pre:]

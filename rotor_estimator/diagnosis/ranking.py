@@ -4,10 +4,16 @@ Decision rule (documented in the report):
 
 * ``delta_bic = BIC(nominal) - BIC(nominal + effect)``; a positive value is evidence for
   the effect after paying ``ln n`` per extra parameter (Schwarz 1978).
+* The leading candidates are refitted jointly with the 8 coefficients (structural and
+  nonlinear effects from several starts), and the nominal reference is re-polished from
+  every refitted coefficient set, so a better nominal basin is not credited to an effect.
 * The winner is the effect with the largest ``delta_bic``. It is reported only when
   ``delta_bic >= SIGNIFICANCE_DELTA_BIC`` **and** it predicts the held-out later part of
   the record better than the nominal model; otherwise ``best_effect = "none"``.
-* A second effect is searched on top of the winner (forward selection) with the same rule.
+* Pairs (every effect on top of each leading single) compete with the winner: a pair whose
+  BIC beats the top single by the same threshold, with a better held-out prediction, is
+  the verdict (its member with the better single fit first). An omnibus effect such as
+  runout (32 columns) can then no longer stand in for two real effects.
 """
 from __future__ import annotations
 
@@ -24,8 +30,18 @@ from .fitting import LinearSolution, Projector, bic, coefficients_after, held_ou
 SIGNIFICANCE_DELTA_BIC = 30.0
 #: Nominal parameters counted in the BIC: 8 coefficients + 4 DC offsets.
 NOMINAL_PARAMS = 12
-#: Candidates re-linearized (outer Gauss-Newton on the coefficients) after the first pass.
-REFINE_TOP = 2
+#: Candidates re-linearized (outer Gauss-Newton on the coefficients) after the first pass: every one with
+#: positive evidence (an effect the nominal fit absorbed by dragging the coefficients shows little in the
+#: first pass, and a short list let an omnibus effect win by default).
+REFINE_TOP = 9
+#: Function evaluations of each joint refit (each one re-simulates the model; the Jacobian costs 8+ more).
+REFINE_NFEV = 12
+#: The same for the multi-start refits of the structural effects (short runs do not rank their basins).
+REFINE_NFEV_MULTISTART = 25
+#: Leading singles on top of which every other effect is tried as a pair.
+PAIR_BASES = 3
+#: Best pairs refitted jointly with the coefficients.
+PAIR_REFINE = 2
 #: Residuals are handed to least_squares in micrometres so that its tolerances mean something.
 RESIDUAL_SCALE = 1e6
 #: Effects that change the 1X forcing: the nominal fit absorbs them by moving the coefficients far,
@@ -96,6 +112,9 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
 
         def fun(p):
             off, cols = effect.basis(ctx, p)
+            if (off is not None and not np.all(np.isfinite(off[ctx.mask]))) or not np.all(np.isfinite(cols[ctx.mask])):
+                return np.full(proj.base_target.size, 10.0 * float(np.sqrt(np.mean(proj.base_target ** 2))) + 1e-12) \
+                    * RESIDUAL_SCALE
             return proj.residual(_sum([base_off, off]), cols) * RESIDUAL_SCALE
 
         if nl0 is None:
@@ -138,7 +157,8 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
 
 
 def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
-           reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = ()) -> EffectFit:
+           reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = (),
+           nl_starts: tuple[np.ndarray, ...] = (), polish_nfev: int = 30) -> EffectFit:
     """Joint nonlinear refit of the 8 bearing coefficients with the effect (and the ``base`` effects).
 
     The first pass linearizes the nominal model about its own fit, which a large effect
@@ -165,6 +185,8 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
         off = _sum(offs)
         x_cols = _stack(cols, n)
         target = c2.y_m - c2.y_nom_m - (0.0 if off is None else off)
+        if not np.all(np.isfinite(target[rows])) or (x_cols.shape[2] and not np.all(np.isfinite(x_cols[rows]))):
+            return _UNSTABLE * RESIDUAL_SCALE  # an unstable model at this trial point: a large finite misfit
         b_vec = target[rows]
         b_vec = (b_vec - b_vec.mean(axis=0)).ravel()
         if x_cols.shape[2]:
@@ -174,22 +196,45 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
             b_vec = b_vec - xc @ coef
         return b_vec * RESIDUAL_SCALE
 
+    scale = float(np.sqrt(np.mean(ctx.y_m[rows] ** 2))) + 1e-12
+    _UNSTABLE = np.full(int(rows.sum()) * 4, 10.0 * scale)
     lo = np.concatenate([np.full(8, -np.inf), effect.nl_bounds(ctx)[0]])
     hi = np.concatenate([np.full(8, np.inf), effect.nl_bounds(ctx)[1]])
     best = fit
-    for r_start in (fit.coefficients, *extra_starts):
-        x0 = np.concatenate([np.asarray(r_start, float) / COEFFICIENT_SCALE, fit.nl])
+    starts = [(r, fit.nl) for r in (fit.coefficients, *extra_starts)]
+    starts += [(fit.coefficients, np.asarray(p, float)) for p in nl_starts]
+    results = []
+    for r_start, nl_start in starts:
+        x0 = np.concatenate([np.asarray(r_start, float) / COEFFICIENT_SCALE, nl_start])
         x0 = np.clip(x0, lo + 1e-9, hi - 1e-9) if n_nl else x0
         try:
-            res = least_squares(fun, x0, bounds=(lo, hi), diff_step=1e-4, max_nfev=max_nfev, x_scale=1.0)
-            ctx_new = recentered(ctx, res.x[:8] * COEFFICIENT_SCALE)
-            new = fit_effect(ctx_new, effect, tuple(_refit_base(ctx_new, b) for b in base),
-                             reference_bic=reference_bic, nl0=res.x[8:] if n_nl else None, max_nfev=5)
+            results.append(least_squares(fun, x0, bounds=(lo, hi), diff_step=1e-4, max_nfev=max_nfev,
+                                         x_scale=1.0))
         except (ValueError, np.linalg.LinAlgError):
             continue
-        if new.bic < best.bic:
-            best = new
-    return best
+    if not results:
+        return best
+    results.sort(key=lambda r: r.cost)
+    if len(starts) > 1 and polish_nfev > 0:  # the two best starts continued (a short run may not rank basins)
+        polished = []
+        for r in results[:2]:
+            if r.status != 0:  # converged already
+                polished.append(r)
+                continue
+            try:
+                polished.append(least_squares(fun, r.x, bounds=(lo, hi), diff_step=1e-4, max_nfev=polish_nfev,
+                                              x_scale=1.0))
+            except (ValueError, np.linalg.LinAlgError):
+                polished.append(r)
+        results = sorted(polished, key=lambda r: r.cost)
+    res = results[0]
+    try:
+        ctx_new = recentered(ctx, res.x[:8] * COEFFICIENT_SCALE)
+        new = fit_effect(ctx_new, effect, tuple(_refit_base(ctx_new, b) for b in base),
+                         reference_bic=reference_bic, nl0=res.x[8:] if n_nl else None, max_nfev=5)
+    except (ValueError, np.linalg.LinAlgError):
+        return best
+    return new if new.bic < best.bic else best
 
 
 def _refit_base(ctx: FitContext, b: EffectFit) -> EffectFit:
@@ -228,36 +273,112 @@ class Ranking:
     pairs: list[EffectFit]
 
 
+def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 15) -> tuple[float, np.ndarray]:
+    """Nominal-only BIC after an output-error polish of the 8 coefficients started at ``coefficients``.
+
+    A joint refit of an effect may land the coefficients in a better basin of the nominal
+    model itself; this re-evaluates the nominal from there so that the improvement is not
+    credited to the effect.
+    """
+    from .context import COEFFICIENT_SCALE, _simulate_nominal
+
+    rows = ctx.mask
+
+    def fun(p):
+        yn, _, _ = _simulate_nominal(ctx.rig, ctx.mats, p * COEFFICIENT_SCALE, ctx.t_s, ctx.shaft, ctx.schedule,
+                                     ctx.known_smooth_n, ctx.known_step_n, ctx.period_s)
+        e = (ctx.y_m - yn)[rows]
+        return (e - e.mean(axis=0)).ravel() * RESIDUAL_SCALE
+
+    try:
+        res = least_squares(fun, np.asarray(coefficients, float) / COEFFICIENT_SCALE, method="lm", diff_step=1e-4,
+                            max_nfev=polish_nfev * 9)
+    except (ValueError, np.linalg.LinAlgError):
+        return float("inf"), np.asarray(coefficients, float)
+    rss = float(np.sum(res.fun ** 2)) / RESIDUAL_SCALE ** 2
+    return bic(rss, res.fun.size, NOMINAL_PARAMS), res.x * COEFFICIENT_SCALE
+
+
+def _with_reference(f: EffectFit, ref_bic: float) -> EffectFit:
+    from dataclasses import replace
+
+    return replace(f, delta_bic=ref_bic - f.bic)
+
+
 def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, second_stage: bool = True,
                  threshold: float = SIGNIFICANCE_DELTA_BIC) -> Ranking:
-    """Fit each candidate, sort by ``delta_bic``, apply the decision rule, then search a second effect."""
+    """Fit each candidate, refine the leaders jointly with the coefficients, then select one or two effects.
+
+    Steps:
+
+    1. every single effect by variable projection about the nominal fit;
+    2. the ``REFINE_TOP`` leaders (and the 1X-forcing effects, from r0 too, and the structural
+       effects, from several natural frequencies: their first pass linearizes about coefficients
+       the nominal fit dragged to absorb them) refitted jointly with the 8 coefficients (:func:`refine`);
+    3. the nominal reference re-polished from every refined coefficient set (:func:`nominal_at`),
+       so a better nominal basin found on the way is not credited to an effect;
+    4. pairs: every effect on top of each of the ``PAIR_BASES`` leading singles, the best
+       refined; the selected model is the smallest BIC among the top single and the pairs,
+       a pair needing ``threshold`` over the single and a better held-out prediction. This
+       stops an omnibus effect (runout: 32 columns) from standing in for two real ones.
+    """
     sol0, bic0, ho0 = nominal_solution(ctx)
-    singles = [fit_effect(ctx, e, reference_bic=bic0) for e in library]
+    singles = []
+    for e in library:
+        try:
+            singles.append(fit_effect(ctx, e, reference_bic=bic0))
+        except (ValueError, np.linalg.LinAlgError):  # a candidate that cannot be fitted here is left out
+            continue
     singles.sort(key=lambda f: -f.delta_bic)
     by_name = {e.name: e for e in library}
     for i, f in enumerate(singles):
         always = f.name in FORCING_1X
-        if i < REFINE_TOP or always:
-            if f.delta_bic > 0 or always:
-                starts = (ctx.prior_coefficients,) if always else ()
-                singles[i] = refine(ctx, by_name[f.name], f, reference_bic=bic0, extra_starts=starts)
+        eff = by_name[f.name]
+        nl_starts = tuple(eff.refine_starts(ctx)) if f.delta_bic > 0 else ()
+        if (i < REFINE_TOP and f.delta_bic > 0) or always or nl_starts:
+            starts = (ctx.prior_coefficients,) if always else ()
+            singles[i] = refine(ctx, eff, f, reference_bic=bic0, extra_starts=starts, nl_starts=nl_starts,
+                                max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
+    # 3. a fair nominal reference
+    ref = bic0
+    for f in singles:
+        if f.delta_bic > 0 and not np.allclose(f.coefficients, ctx.coefficients, rtol=1e-6):
+            b, _ = nominal_at(ctx, f.coefficients)
+            ref = min(ref, b)
+    if ref < bic0:
+        singles = [_with_reference(f, ref) for f in singles]
     singles.sort(key=lambda f: -f.delta_bic)
     top = singles[0]
     best = top if (top.delta_bic >= threshold and top.held_out_rms_m < ho0) else None
     second, pairs = None, []
     if best is not None and second_stage:
-        bctx = best.ctx or ctx
-        for e in library:
-            if e.name == best.name:
-                continue
-            pairs.append(fit_effect(bctx, e, (best,), reference_bic=best.bic))
-        pairs.sort(key=lambda f: -f.delta_bic)
-        for i in range(min(2, len(pairs))):
-            if pairs[i].delta_bic > 0:
-                pairs[i] = refine(bctx, by_name[pairs[i].name], pairs[i], (best,), reference_bic=best.bic)
-        pairs.sort(key=lambda f: -f.delta_bic)
-        cand = pairs[0]
-        if cand.delta_bic >= threshold and cand.held_out_rms_m < best.held_out_rms_m:
-            second = cand
-    return Ranking(nominal_bic=bic0, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=singles,
+        bases = [f for f in singles[:PAIR_BASES] if f.delta_bic >= threshold]
+        seen = set()
+        for a in bases:
+            actx = a.ctx or ctx
+            for e in library:
+                key = frozenset((a.name, e.name))
+                if e.name == a.name or key in seen:
+                    continue
+                seen.add(key)
+                try:
+                    pairs.append(fit_effect(actx, e, (a,), reference_bic=top.bic))
+                except (ValueError, np.linalg.LinAlgError):
+                    continue
+        pairs.sort(key=lambda f: f.bic)
+        for i in range(min(PAIR_REFINE, len(pairs))):
+            p = pairs[i]
+            a = next(f for f in singles if f.name == p.base[0])
+            pairs[i] = refine(a.ctx or ctx, by_name[p.name], p, (a,), reference_bic=top.bic, max_nfev=REFINE_NFEV)
+        pairs.sort(key=lambda f: f.bic)
+        cand = pairs[0] if pairs else None
+        if cand is not None and cand.bic <= top.bic - threshold and cand.held_out_rms_m < top.held_out_rms_m:
+            rank = {f.name: i for i, f in enumerate(singles)}
+            a_name, b_name = cand.base[0], cand.name
+            first, other = (a_name, b_name) if rank[a_name] <= rank[b_name] else (b_name, a_name)
+            from dataclasses import replace
+
+            best = next(f for f in singles if f.name == first)
+            second = replace(cand, name=other, base=(first,), delta_bic=best.bic - cand.bic)
+    return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=singles,
                    best=best, second=second, pairs=pairs)

@@ -53,8 +53,9 @@ CASES = [
     ("misalignment", HiddenEffects(misalignment_n=(10.0, 5.0, -4.0, 8.0), preload_n=(20.0, -10.0)), False,
      lambda f: np.allclose(f.lin, [10.0, 5.0, -4.0, 8.0], atol=1.0)),
     ("bearing_cubic", HiddenEffects(cubic_n_per_m3=(1e15, 5e14)), True,
-     # first-order perturbation: the dominant k3 within 30 %, the weaker one within a factor 2.5
-     lambda f: abs(f.physical["k3x_N_per_m3"] / 1e15 - 1) < 0.3 and 0.4 < f.physical["k3y_N_per_m3"] / 5e14 < 2.5),
+     # exact nonlinear fit: the dominant k3 within 20 %; the weaker k3y (stiffer direction, smaller orbit)
+     # trades off against kyy in the joint fit, so only its sign and order of magnitude are checked
+     lambda f: abs(f.physical["k3x_N_per_m3"] / 1e15 - 1) < 0.2 and 0.2 < f.physical["k3y_N_per_m3"] / 5e14 < 2.5),
     ("pedestal", HiddenEffects(pedestal=(2.0, 2.0e6, 2 * 0.05 * math.sqrt(2.0e6 * 2.0))), True,
      lambda f: abs(f.physical["pedestal_frequency_hz"] / (math.sqrt(1e6) / (2 * math.pi)) - 1) < 0.1),
     ("shaft_bending", HiddenEffects(bending=(600.0, 0.02, 1.0)), False,
@@ -62,7 +63,8 @@ CASES = [
     ("probe_gain_orientation", HiddenEffects(gain=(0.03, -0.02, 0.01, 0.02), orientation_rad=(0.02, -0.01)), True,
      lambda f: np.allclose(f.lin, [0.03, -0.02, 0.01, 0.02, 0.02, -0.01], atol=0.008)),
     ("timing_skew", HiddenEffects(skew_s=(20e-6, -12e-6, 30e-6)), True,
-     lambda f: np.allclose(f.lin, [20.0, -12.0, 30.0], rtol=0.2)),
+     lambda f: np.allclose([f.physical[f"skew_{c}_s"] * 1e6 for c in ("yp1", "xp2", "yp2")], [20.0, -12.0, 30.0],
+                           rtol=0.2)),
 ]
 
 
@@ -140,3 +142,15 @@ def test_hidden_effects_validation_names_the_field():
 
     with pytest.raises(ConfigError, match="effects.pedestal"):
         HiddenEffects(pedestal=(0.0, 1e6, 10.0)).validate()
+
+
+def test_exact_delay_matches_a_shifted_sine():
+    """The timing-skew model delays by Hermite interpolation: exact to ~1e-4 for a 333 Hz sine at 20 kHz."""
+    from rotor_estimator.diagnosis.effects import delayed
+
+    h, w = 50e-6, 2 * np.pi * 333.0
+    t = np.arange(2000) * h
+    for tau in (7e-6, 30e-6, 0.4e-3):
+        y = delayed(np.sin(w * t), w * np.cos(w * t), tau, h)
+        sel = t > tau + h
+        assert np.max(np.abs(y[sel] - np.sin(w * (t[sel] - tau)))) < 2e-4
