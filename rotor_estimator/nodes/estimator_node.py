@@ -15,17 +15,17 @@ a wrong type on an input topic is reported too (DDS never delivers its messages)
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any, Mapping
 
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, qos_profile_sensor_data
 
 import msg_adapters as ma
 
+from .params import ParamSpec, descriptor
 from .spin import run_node
 from ..alignment import AlignmentConfig
 from ..config import BearingCoefficients, RigFile, load_rig_file
@@ -34,18 +34,6 @@ from ..tachometer import TachometerConfig
 from .io import diagnostic_record, feed_message, output_messages
 
 _PC2 = "sensor_msgs/msg/PointCloud2"
-
-
-@dataclass(frozen=True)
-class ParamSpec:
-    """One ROS parameter: name, default, description with unit, and numeric range."""
-
-    name: str
-    default: Any
-    description: str
-    low: float | None = None
-    high: float | None = None
-    choices: tuple[str, ...] = ()
 
 
 _ARRAY = Parameter.Type.DOUBLE_ARRAY  # declared without a default: unset means "the rig file's value"
@@ -106,20 +94,6 @@ PARAMETERS: tuple[ParamSpec, ...] = (
 )
 
 
-def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    text = spec.description
-    if spec.choices:
-        text += f" (one of: {', '.join(spec.choices)})"
-    d = ParameterDescriptor(description=text, read_only=True)
-    if isinstance(spec.default, Parameter.Type):
-        pass
-    elif isinstance(spec.default, float):
-        d.floating_point_range = [FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
-    elif isinstance(spec.default, int) and not isinstance(spec.default, bool):
-        d.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)]
-    return d
-
-
 def pipeline_from_parameters(values: Mapping[str, Any]) -> tuple[EstimatorPipeline, RigFile, ma.InputTopics]:
     """Build the pipeline from parameter values (missing names take :data:`PARAMETERS` defaults).
 
@@ -170,7 +144,7 @@ class EstimatorNode(Node):
     def __init__(self, node_name: str = "rotor_estimator", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         for spec in PARAMETERS:
-            self.declare_parameter(spec.name, spec.default, _descriptor(spec))
+            self.declare_parameter(spec.name, spec.default, descriptor(spec))
         values = {}
         for spec in PARAMETERS:
             p = self.get_parameter_or(spec.name, None)

@@ -19,16 +19,15 @@ from __future__ import annotations
 
 import re
 import threading
-from dataclasses import dataclass
 from typing import Any, Mapping
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, qos_profile_sensor_data
 
 import msg_adapters as ma
 
+from .params import ParamSpec, descriptor
 from .spin import run_node
 from ..errors import ConfigError, InputError
 from ..flexible import build_state_space, load_rotor_description
@@ -36,18 +35,6 @@ from ..virtual_sensing import FILTERS, VirtualSensingConfig, resolve_stations
 from ..virtual_sensing_stream import PipelineOptions, VirtualSensingPipeline
 
 __all__ = ["PARAMETERS", "ParamSpec", "pipeline_from_parameters", "VirtualSensingNode", "main"]
-
-
-@dataclass(frozen=True)
-class ParamSpec:
-    """One ROS parameter: name, default, description with unit, numeric range, choices."""
-
-    name: str
-    default: Any
-    description: str
-    low: float | None = None
-    high: float | None = None
-    choices: tuple[str, ...] = ()
 
 
 #: Every parameter of the node, in one place.
@@ -82,20 +69,6 @@ PARAMETERS: tuple[ParamSpec, ...] = (
 )
 
 _TOKEN = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-
-
-def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    text = spec.description
-    if spec.choices:
-        text += f" (one of: {', '.join(spec.choices)})"
-    d = ParameterDescriptor(description=text, read_only=True)
-    if isinstance(spec.default, bool) or isinstance(spec.default, (str, Parameter.Type)):
-        return d
-    if isinstance(spec.default, float):
-        d.floating_point_range = [FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
-    elif isinstance(spec.default, int):
-        d.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)]
-    return d
 
 
 def pipeline_from_parameters(values: Mapping[str, Any]) -> VirtualSensingPipeline:
@@ -137,7 +110,7 @@ class VirtualSensingNode(Node):
         super().__init__(node_name, **kwargs)
         values = {}
         for spec in PARAMETERS:
-            self.declare_parameter(spec.name, spec.default, _descriptor(spec))
+            self.declare_parameter(spec.name, spec.default, descriptor(spec))
         for spec in PARAMETERS:
             p = self.get_parameter_or(spec.name, None)
             values[spec.name] = None if p is None or p.type_ == Parameter.Type.NOT_SET else p.value
