@@ -5,13 +5,11 @@ and a clean shutdown in ``finally``.
 """
 from __future__ import annotations
 
-import os
-import random
 import threading
-import time
 
 import numpy as np
 import pytest
+from live_helpers import random_domain_id, wait_for
 
 import msg_adapters as ma
 from rotor_estimator.config import load_rig_file
@@ -26,14 +24,6 @@ def accounting(est):
         return est.pipeline.accounting()
 
 
-def wait_for(predicate, timeout_s: float, step_s: float = 0.05) -> bool:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(step_s)
-    return predicate()
-
 
 @pytest.fixture
 def graph():
@@ -42,7 +32,7 @@ def graph():
     from rclpy.executors import SingleThreadedExecutor
 
     ctx = Context()
-    domain_id = random.Random(os.getpid() ^ time.time_ns()).randint(1, 215)
+    domain_id = random_domain_id()
     rclpy.init(context=ctx, domain_id=domain_id)
     nodes, executors, threads = [], [], []
 

@@ -5,13 +5,12 @@ clean shutdown in ``finally``.
 """
 from __future__ import annotations
 
-import os
-import random
 import threading
 import time
 
 import numpy as np
 import pytest
+from live_helpers import random_domain_id, wait_for
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -30,19 +29,11 @@ N_SAMPLES = 480
 BLOCK = 32
 
 
-def wait_for(predicate, timeout_s: float, step_s: float = 0.02) -> bool:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(step_s)
-    return predicate()
-
 
 @pytest.fixture
 def ros():
     ctx = Context()
-    rclpy.init(context=ctx, domain_id=random.Random(os.getpid() ^ time.time_ns()).randint(1, 215))
+    rclpy.init(context=ctx, domain_id=random_domain_id())
     ex = SingleThreadedExecutor(context=ctx)
     nodes = []
 
