@@ -37,7 +37,8 @@ class HiddenEffects:
     * ``cubic_n_per_m3``: ``(k3x, k3y)`` at both bearings.
     * ``pedestal``: ``(mass_kg, stiffness_N_per_m, damping_N_s_per_m)`` under each bearing.
     * ``bending``: ``(frequency_hz, damping_ratio, modal_mass_kg)``.
-    * ``gain``: relative gain error per channel; ``orientation_rad``: probe-pair rotation per plane.
+    * ``gain``: relative gain error per channel; ``orientation_rad``: mounting-angle error per probe
+      (4 values, xp1 yp1 xp2 yp2) or a rotation of each probe pair (2 values, one per plane).
     * ``skew_s``: delay of yp1, xp2, yp2 relative to xp1.
     """
 
@@ -50,7 +51,7 @@ class HiddenEffects:
     pedestal: tuple[float, float, float] | None = None
     bending: tuple[float, float, float] | None = None
     gain: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
-    orientation_rad: tuple[float, float] = (0.0, 0.0)
+    orientation_rad: tuple[float, ...] = (0.0, 0.0)
     skew_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def validate(self) -> "HiddenEffects":
@@ -58,6 +59,8 @@ class HiddenEffects:
             raise ConfigError("effects.pedestal: mass_kg and stiffness_N_per_m must be > 0")
         if self.bending is not None and not (self.bending[0] > 0 and self.bending[2] > 0):
             raise ConfigError("effects.bending: frequency_hz and modal_mass_kg must be > 0")
+        if len(self.orientation_rad) not in (2, 4):
+            raise ConfigError("effects.orientation_rad: 2 values (per plane) or 4 (per probe)")
         if abs(self.tach_offset_rad) > math.pi:
             raise ConfigError("effects.tach_offset_rad: must be within [-pi, pi]")
         return self
@@ -259,11 +262,12 @@ def simulate_with_effects(rig: RigConfig, scenario: EffectScenario, effects: Hid
         for c in range(4):
             for h in range(ro.shape[1]):
                 y[:, c] += ro[c, h, 0] * np.cos((h + 1) * theta) + ro[c, h, 1] * np.sin((h + 1) * theta)
+    angles = np.repeat(effects.orientation_rad, 2) if len(effects.orientation_rad) == 2 else effects.orientation_rad
     for p in range(2):
-        d = effects.orientation_rad[p]
+        dx, dy = float(angles[2 * p]), float(angles[2 * p + 1])
         x, yy = y[:, 2 * p].copy(), y[:, 2 * p + 1].copy()
-        y[:, 2 * p] = (1 + effects.gain[2 * p]) * (x * math.cos(d) + yy * math.sin(d))
-        y[:, 2 * p + 1] = (1 + effects.gain[2 * p + 1]) * (-x * math.sin(d) + yy * math.cos(d))
+        y[:, 2 * p] = (1 + effects.gain[2 * p]) * (x * math.cos(dx) + yy * math.sin(dx))
+        y[:, 2 * p + 1] = (1 + effects.gain[2 * p + 1]) * (-x * math.sin(dy) + yy * math.cos(dy))
     clean = y[n_lead:]
     rng = np.random.default_rng(seed)
     noise_m = rng.standard_normal(clean.shape) * scenario.noise_std_m if noise else np.zeros_like(clean)

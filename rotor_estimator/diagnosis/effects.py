@@ -64,6 +64,14 @@ class Effect:
         """Physical parameter values (SI) from the fitted nonlinear and linear parameters."""
         return {}
 
+    #: True for an effect that acts on the whole probe signal (a delay): in a pair it also acts
+    #: on the other effect's contribution (:meth:`transform`).
+    transforms_signal: ClassVar[bool] = False
+
+    def transform(self, ctx: FitContext, nl: np.ndarray, signal_m: np.ndarray) -> np.ndarray:
+        """The effect applied to another contribution ``signal_m`` ((N,4) or (N,4,k)); identity by default."""
+        return signal_m
+
 
 def _unbalance_force(ctx: FitContext, axial_position_m: float, phase_rad: float, moment_kg_m: float,
                      harmonic: int = 1) -> np.ndarray:
@@ -227,10 +235,20 @@ class BearingCubic(Effect):
     def nl_bounds(self, ctx):
         return np.full(2, -1e4), np.full(2, 1e4)
 
+    #: Tangent-stiffness increases ``3 k3 x_rms^2 / k`` at the measured RMS orbit the joint refit starts from.
+    start_tangent_ratios: ClassVar[tuple[float, ...]] = (0.1, 1.0)
+
     def refine_starts(self, ctx):
         # the nominal fit absorbs a hardening into stiffer coefficients, so the first pass about
-        # them sees little of it: the joint refit also starts from an order-of-magnitude hardening
-        return [np.ones(2), 10.0 * np.ones(2)]
+        # them sees little of it: the joint refit also starts from hardenings scaled to the data,
+        # a given tangent-stiffness increase at the measured orbit over the prior stiffness
+        e = ctx.y_m[ctx.mask]
+        rms = np.sqrt(np.mean((e - e.mean(axis=0)) ** 2, axis=0))
+        x2 = np.array([max(rms[0], rms[2]), max(rms[1], rms[3])]) ** 2
+        k = np.abs(np.asarray(ctx.prior_coefficients, float)[[0, 3]])
+        lo, hi = self.nl_bounds(ctx)
+        return [np.clip(r * k / (3 * np.maximum(x2, 1e-18)) / self.nl_unit, 0.0, 0.9 * hi)
+                for r in self.start_tangent_ratios]
 
     def _simulate(self, ctx, k3_n_per_m3: np.ndarray) -> np.ndarray:
         mats, r = ctx.mats, ctx.coefficients
@@ -351,28 +369,42 @@ class ShaftBending(Effect):
 
 @dataclass(frozen=True)
 class ProbeGainOrientation(Effect):
-    """Probe sensitivity error per channel and probe-pair rotation per plane (small-angle)."""
+    """Sensitivity and mounting-angle error of each probe: a general 2x2 map per probe plane.
+
+    A probe at angle error ``d_i`` with gain error ``g_i`` reads
+    ``(1 + g_i) (x cos d_i + y sin d_i)`` (x probe) or ``(1 + g_i) (-x sin d_i + y cos d_i)``
+    (y probe): each plane's pair is the exact linear map ``[x', y'] = A_p [x, y]`` with
+    4 free entries (per-probe gain and angle, so non-orthogonal probes too), fitted as
+    ``A_p - I`` on the nominal output.
+    """
 
     name: ClassVar[str] = "probe_gain_orientation"
-    description: ClassVar[str] = "probe gain error per channel and orientation error per probe plane"
+    description: ClassVar[str] = "probe gain and mounting-angle error per probe (2x2 map per probe plane)"
 
     def lin_names(self, ctx):
-        return ("gain_xp1", "gain_yp1", "gain_xp2", "gain_yp2", "orientation_p1_rad", "orientation_p2_rad")
+        return tuple(f"{plane}_{entry}" for plane in ("p1", "p2")
+                     for entry in ("axx_minus_1", "axy", "ayx", "ayy_minus_1"))
 
     def basis(self, ctx, nl):
         y = ctx.y_nom_m
-        n = y.shape[0]
-        cols = np.zeros((n, 4, 6))
-        for c in range(4):
-            cols[:, c, c] = y[:, c]
+        cols = np.zeros((y.shape[0], 4, 8))
         for p in range(2):
-            cols[:, 2 * p, 4 + p] = y[:, 2 * p + 1]      # x' = x + delta y
-            cols[:, 2 * p + 1, 4 + p] = -y[:, 2 * p]     # y' = y - delta x
+            x_c, y_c = 2 * p, 2 * p + 1
+            cols[:, x_c, 4 * p] = y[:, x_c]
+            cols[:, x_c, 4 * p + 1] = y[:, y_c]
+            cols[:, y_c, 4 * p + 2] = y[:, x_c]
+            cols[:, y_c, 4 * p + 3] = y[:, y_c]
         return None, cols
 
     def physical(self, nl, lin):
-        out = {f"gain_error_{ch}": float(g) for ch, g in zip(CHANNELS, lin[:4])}
-        out.update({"orientation_p1_deg": float(np.degrees(lin[4])), "orientation_p2_deg": float(np.degrees(lin[5]))})
+        out = {}
+        for p in range(2):
+            axx, axy, ayx, ayy = 1 + lin[4 * p], lin[4 * p + 1], lin[4 * p + 2], 1 + lin[4 * p + 3]
+            x_ch, y_ch = CHANNELS[2 * p], CHANNELS[2 * p + 1]
+            out[f"gain_error_{x_ch}"] = float(np.hypot(axx, axy) - 1)
+            out[f"gain_error_{y_ch}"] = float(np.hypot(ayx, ayy) - 1)
+            out[f"angle_error_{x_ch}_deg"] = float(np.degrees(np.arctan2(axy, axx)))
+            out[f"angle_error_{y_ch}_deg"] = float(np.degrees(np.arctan2(-ayx, ayy)))
         return out
 
 
@@ -426,6 +458,22 @@ class TimingSkew(Effect):
 
     def physical(self, nl, lin):
         return {f"skew_{ch}_s": float(v * UNIT_SKEW_S) for ch, v in zip(CHANNELS[1:], nl)}
+
+    transforms_signal: ClassVar[bool] = True
+
+    def transform(self, ctx, nl, signal_m):
+        """Another contribution delayed like the probe it appears on (derivative by central differences)."""
+        out = np.array(signal_m, dtype=float, copy=True)
+        if out.size == 0:
+            return out
+        flat = out.reshape(out.shape[0], 4, -1)
+        for i, c in enumerate((1, 2, 3)):
+            if nl[i] == 0.0:
+                continue
+            for k in range(flat.shape[2]):
+                sig = flat[:, c, k].copy()
+                flat[:, c, k] = delayed(sig, np.gradient(sig, ctx.period_s), nl[i] * UNIT_SKEW_S, ctx.period_s)
+        return flat.reshape(out.shape)
 
 
 #: The candidate library, in report order.
