@@ -11,7 +11,7 @@ Decision rule (documented in the report):
   ``delta_bic >= SIGNIFICANCE_DELTA_BIC`` **and** it predicts the held-out later part of
   the record better than the nominal model; otherwise ``best_effect = "none"``.
 * Pairs (every effect on top of each leading single) compete with the winner: a pair whose
-  BIC beats the top single by the same threshold, with a better held-out prediction, is
+  BIC beats the top single by the same threshold, with a held-out prediction no worse, is
   the verdict (its member with the better single fit first). An omnibus effect such as
   runout (32 columns) can then no longer stand in for two real effects.
 """
@@ -41,12 +41,21 @@ REFINE_NFEV_MULTISTART = 25
 #: Leading singles on top of which every other effect is tried as a pair.
 PAIR_BASES = 3
 #: Best pairs refitted jointly with the coefficients.
-PAIR_REFINE = 2
+PAIR_REFINE = 3
+#: Starts of the nonlinear search of a pair's first pass (the best grid points; a base moves the basins).
+PAIR_STARTS = 3
+#: A pair must predict the held-out span no worse than the single it replaces, within this ratio: the
+#: held-out RMS of ~10^4 samples is itself uncertain to about 1 %, and a second effect that lives in the
+#: impact transients (a hardening) barely changes it, so a strict "better" turned on rounding.
+HELD_OUT_TOLERANCE = 1e-3
 #: Residuals are handed to least_squares in micrometres so that its tolerances mean something.
 RESIDUAL_SCALE = 1e6
 #: Effects that change the 1X forcing: the nominal fit absorbs them by moving the coefficients far,
-#: so their joint refit also starts from the prior coefficients r0.
+#: so their joint refit always runs (every joint refit also starts from the prior coefficients r0).
 FORCING_1X = ("residual_unbalance", "tach_offset")
+#: Effects whose structural starts (``refine_starts``) are also tried from the prior coefficients r0:
+#: a strong hardening drags the nominal stiffness far from r0 (up to 10x seen).
+PRIOR_STRUCTURAL_STARTS = ("bearing_cubic",)
 
 
 @dataclass
@@ -70,6 +79,7 @@ class EffectFit:
     residual_rms_m: np.ndarray        # (4,) per channel, after
     coefficients: np.ndarray          # (8,) SI after the joint correction
     prediction_m: np.ndarray          # (N, 4)
+    base_lin: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))  # base effects' gains, refitted
     offset: np.ndarray | None = field(repr=False, default=None)
     cols: np.ndarray | None = field(repr=False, default=None)
     ctx: FitContext | None = field(repr=False, default=None)
@@ -93,6 +103,24 @@ def _sum(parts: list[np.ndarray | None]) -> np.ndarray | None:
     return sum(parts) if parts else None
 
 
+def _compose(ctx: FitContext, effect: Effect, nl: np.ndarray, base_effects: list[tuple[Effect, np.ndarray]],
+             base_off: np.ndarray | None, base_cols: np.ndarray, off: np.ndarray | None, cols: np.ndarray):
+    """A pair's contributions in physical order: a signal transform (timing skew) acts on the other's too.
+
+    The probe reads ``delay(y_nom + other effect)``, so the other effect's offset and columns are
+    delayed with it; otherwise a 2X misalignment seen through a skewed channel would be fitted as
+    if it were not skewed, and an omnibus effect (runout) would win the pair's place.
+    """
+    if effect.transforms_signal and (base_off is not None or base_cols.shape[2]):
+        base_off = None if base_off is None else effect.transform(ctx, nl, base_off)
+        base_cols = effect.transform(ctx, nl, base_cols)
+    for b_eff, b_nl in base_effects:
+        if b_eff.transforms_signal:
+            off = None if off is None else b_eff.transform(ctx, b_nl, off)
+            cols = b_eff.transform(ctx, b_nl, cols)
+    return base_off, base_cols, off, cols
+
+
 def nominal_solution(ctx: FitContext) -> tuple[LinearSolution, float, float]:
     """The nominal model's (re-)solution, its BIC and held-out RMS."""
     sol = solve_linear(ctx, None, None)
@@ -100,39 +128,51 @@ def nominal_solution(ctx: FitContext) -> tuple[LinearSolution, float, float]:
 
 
 def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = (), *,
-               reference_bic: float | None = None, max_nfev: int = 30, nl0: np.ndarray | None = None) -> EffectFit:
-    """Fit ``effect`` (on top of the fixed-shape ``base`` fits) by variable projection."""
+               reference_bic: float | None = None, max_nfev: int = 30, nl0: np.ndarray | None = None,
+               extra_grid: tuple[np.ndarray, ...] = (), n_starts: int = 1) -> EffectFit:
+    """Fit ``effect`` (on top of the fixed-shape ``base`` fits) by variable projection.
+
+    Nonlinear parameters: a grid (``nl_grid`` and ``extra_grid``), then a bounded
+    Levenberg-Marquardt from the ``n_starts`` best grid points; the lowest cost wins.
+    """
     n = ctx.t_s.size
     base_off = _sum([b.offset for b in base])
     base_cols = _stack([b.cols for b in base], n)
+    base_effects = [(b.effect, b.nl) for b in base if b.effect is not None]
+    # a signal transform on top of a base changes the base's columns with its parameters: project them too
+    moving_base = effect.transforms_signal and bool(base)
     nl = np.zeros(0)
     nl_std = np.zeros(0)
     if effect.nl_names:
-        proj = Projector(ctx, base_cols, ctx.mask)
+        proj = Projector(ctx, None if moving_base else base_cols, ctx.mask)
 
         def fun(p):
-            off, cols = effect.basis(ctx, p)
+            b_off, b_cols, off, cols = _compose(ctx, effect, p, base_effects, base_off, base_cols,
+                                                *effect.basis(ctx, p))
             if (off is not None and not np.all(np.isfinite(off[ctx.mask]))) or not np.all(np.isfinite(cols[ctx.mask])):
                 return np.full(proj.base_target.size, 10.0 * float(np.sqrt(np.mean(proj.base_target ** 2))) + 1e-12) \
                     * RESIDUAL_SCALE
+            if moving_base:
+                return proj.residual(_sum([b_off, off]), _stack([b_cols, cols], n)) * RESIDUAL_SCALE
             return proj.residual(_sum([base_off, off]), cols) * RESIDUAL_SCALE
 
         if nl0 is None:
-            grid = effect.nl_grid(ctx)
+            grid = list(effect.nl_grid(ctx)) + [np.asarray(g, float) for g in extra_grid]
             costs = [float(np.sum(fun(g) ** 2)) for g in grid]
-            x0 = grid[int(np.argmin(costs))]
+            x0s = [grid[i] for i in np.argsort(costs)[:max(1, n_starts)]]
         else:
-            x0 = np.asarray(nl0, dtype=float)
+            x0s = [np.asarray(nl0, dtype=float)]
         lo, hi = effect.nl_bounds(ctx)
-        res = least_squares(fun, np.clip(x0, lo + 1e-9, hi - 1e-9), bounds=(lo, hi), diff_step=1e-3,
-                            max_nfev=max_nfev, x_scale=1.0)
+        res = min((least_squares(fun, np.clip(x0, lo + 1e-9, hi - 1e-9), bounds=(lo, hi), diff_step=1e-3,
+                                 max_nfev=max_nfev, x_scale=1.0) for x0 in x0s), key=lambda r: r.cost)
         nl = res.x
         jtj = res.jac.T @ res.jac
         s2 = 2 * res.cost / max(res.fun.size - len(nl), 1) / RESIDUAL_SCALE ** 2
         nl_std = np.sqrt(np.abs(np.diag(np.linalg.pinv(jtj)))) * np.sqrt(s2)
     off, cols = effect.basis(ctx, nl)
-    all_off = _sum([base_off, off])
-    all_cols = _stack([base_cols, cols], n)
+    b_off, b_cols, t_off, t_cols = _compose(ctx, effect, nl, base_effects, base_off, base_cols, off, cols)
+    all_off = _sum([b_off, t_off])
+    all_cols = _stack([b_cols, t_cols], n)
     sol = solve_linear(ctx, all_off, all_cols)
     k_base = sum(b.n_params for b in base)
     k_eff = effect.n_params(ctx)
@@ -153,12 +193,14 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
                      rss_m2=sol.rss_m2, n_obs=sol.n_obs, bic=b_val, delta_bic=ref - b_val,
                      held_out_rms_m=held_out_rms(ctx, all_off, all_cols),
                      residual_rms_m=np.sqrt(np.mean(resid ** 2, axis=0)), coefficients=coefficients_after(ctx, sol),
-                     prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect)
+                     prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect,
+                     base_lin=sol.theta[:base_cols.shape[2]])
 
 
 def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
            reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = (),
-           nl_starts: tuple[np.ndarray, ...] = (), polish_nfev: int = 30) -> EffectFit:
+           nl_starts: tuple[np.ndarray, ...] = (), start_pairs: tuple[tuple[np.ndarray, np.ndarray], ...] = (),
+           polish_nfev: int = 30) -> EffectFit:
     """Joint nonlinear refit of the 8 bearing coefficients with the effect (and the ``base`` effects).
 
     The first pass linearizes the nominal model about its own fit, which a large effect
@@ -179,13 +221,12 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
             o, c = b.effect.basis(c2, b.nl)
             offs.append(o)
             cols.append(c)
-        o, c = effect.basis(c2, x[8:])
-        offs.append(o)
-        cols.append(c)
-        off = _sum(offs)
-        x_cols = _stack(cols, n)
+        b_off, b_cols, o, c = _compose(c2, effect, x[8:], [(b.effect, b.nl) for b in base], _sum(offs),
+                                       _stack(cols, n), *effect.basis(c2, x[8:]))
+        off = _sum([b_off, o])
+        x_cols = _stack([b_cols, c], n)
         target = c2.y_m - c2.y_nom_m - (0.0 if off is None else off)
-        if not np.all(np.isfinite(target[rows])) or (x_cols.shape[2] and not np.all(np.isfinite(x_cols[rows]))):
+        if not np.all(np.abs(target[rows]) < _DIVERGED_M) or (x_cols.shape[2] and not np.all(np.isfinite(x_cols[rows]))):
             return _UNSTABLE * RESIDUAL_SCALE  # an unstable model at this trial point: a large finite misfit
         b_vec = target[rows]
         b_vec = (b_vec - b_vec.mean(axis=0)).ravel()
@@ -198,12 +239,15 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
 
     scale = float(np.sqrt(np.mean(ctx.y_m[rows] ** 2))) + 1e-12
     _UNSTABLE = np.full(int(rows.sum()) * 4, 10.0 * scale)
+    _DIVERGED_M = 1e3 * scale  # a trial model whose output grows 1000x the data's is unstable, not a fit
     lo = np.concatenate([np.full(8, -np.inf), effect.nl_bounds(ctx)[0]])
     hi = np.concatenate([np.full(8, np.inf), effect.nl_bounds(ctx)[1]])
     best = fit
     starts = [(r, fit.nl) for r in (fit.coefficients, *extra_starts)]
     starts += [(fit.coefficients, np.asarray(p, float)) for p in nl_starts]
+    starts += [(np.asarray(r, float), np.asarray(p, float)) for r, p in start_pairs]
     results = []
+    starts = [(r if _stable(ctx, r) else ctx.coefficients, p) for r, p in starts]  # an unstable start cannot move
     for r_start, nl_start in starts:
         x0 = np.concatenate([np.asarray(r_start, float) / COEFFICIENT_SCALE, nl_start])
         x0 = np.clip(x0, lo + 1e-9, hi - 1e-9) if n_nl else x0
@@ -235,6 +279,17 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     except (ValueError, np.linalg.LinAlgError):
         return best
     return new if new.bic < best.bic else best
+
+
+def _stable(ctx: FitContext, coefficients: np.ndarray) -> bool:
+    """True when the nominal rigid model (Eq. 2) with ``coefficients`` is asymptotically stable at the mean speed."""
+    from . import models
+
+    try:
+        a = models.rigid_state_matrix(ctx.mats, np.asarray(coefficients, float), ctx.mean_speed_rad_s)
+        return bool(np.all(np.isfinite(a)) and np.max(np.linalg.eigvals(a).real) < 0.0)
+    except np.linalg.LinAlgError:
+        return False
 
 
 def _refit_base(ctx: FitContext, b: EffectFit) -> EffectFit:
@@ -312,14 +367,15 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     Steps:
 
     1. every single effect by variable projection about the nominal fit;
-    2. the ``REFINE_TOP`` leaders (and the 1X-forcing effects, from r0 too, and the structural
-       effects, from several natural frequencies: their first pass linearizes about coefficients
-       the nominal fit dragged to absorb them) refitted jointly with the 8 coefficients (:func:`refine`);
+    2. the ``REFINE_TOP`` leaders (and the 1X-forcing effects always; the structural effects from
+       several natural frequencies or hardenings: their first pass linearizes about coefficients
+       the nominal fit dragged to absorb them) refitted jointly with the 8 coefficients
+       (:func:`refine`), each from the nominal fit and from the prior coefficients r0;
     3. the nominal reference re-polished from every refined coefficient set (:func:`nominal_at`),
        so a better nominal basin found on the way is not credited to an effect;
     4. pairs: every effect on top of each of the ``PAIR_BASES`` leading singles, the best
        refined; the selected model is the smallest BIC among the top single and the pairs,
-       a pair needing ``threshold`` over the single and a better held-out prediction. This
+       a pair needing ``threshold`` over the single and a held-out prediction no worse. This
        stops an omnibus effect (runout: 32 columns) from standing in for two real ones.
     """
     sol0, bic0, ho0 = nominal_solution(ctx)
@@ -336,8 +392,13 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         eff = by_name[f.name]
         nl_starts = tuple(eff.refine_starts(ctx)) if f.delta_bic > 0 else ()
         if (i < REFINE_TOP and f.delta_bic > 0) or always or nl_starts:
-            starts = (ctx.prior_coefficients,) if always else ()
+            # from the prior r0 too: a large effect drags the nominal fit far from it (a 30 % probe gain
+            # error moved kxx 15x), and the first pass's linearized jump can even be unstable
+            starts = (ctx.prior_coefficients,)
+            pairs_from_prior = tuple((ctx.prior_coefficients, p) for p in nl_starts) \
+                if f.name in PRIOR_STRUCTURAL_STARTS else ()
             singles[i] = refine(ctx, eff, f, reference_bic=bic0, extra_starts=starts, nl_starts=nl_starts,
+                                start_pairs=pairs_from_prior,
                                 max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
     # 3. a fair nominal reference
     ref = bic0
@@ -361,18 +422,30 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                 if e.name == a.name or key in seen:
                     continue
                 seen.add(key)
-                try:
-                    pairs.append(fit_effect(actx, e, (a,), reference_bic=top.bic))
+                try:  # structural starts in the grid too: a base changes what the effect must explain
+                    pairs.append(fit_effect(actx, e, (a,), reference_bic=top.bic,
+                                            extra_grid=tuple(e.refine_starts(actx)), n_starts=PAIR_STARTS))
                 except (ValueError, np.linalg.LinAlgError):
                     continue
         pairs.sort(key=lambda f: f.bic)
-        for i in range(min(PAIR_REFINE, len(pairs))):
+        # refit jointly with the coefficients: the best pairs, and every pair on the top single whose second
+        # effect the first pass cannot judge (a hardening shows only once the coefficients move back from r0)
+        to_refine = set(range(min(PAIR_REFINE, len(pairs))))
+        to_refine |= {i for i, p in enumerate(pairs) if p.base == (top.name,) and p.name in PRIOR_STRUCTURAL_STARTS}
+        for i in sorted(to_refine):
             p = pairs[i]
             a = next(f for f in singles if f.name == p.base[0])
-            pairs[i] = refine(a.ctx or ctx, by_name[p.name], p, (a,), reference_bic=top.bic, max_nfev=REFINE_NFEV)
+            actx = a.ctx or ctx
+            from_prior = (actx.prior_coefficients,) if p.name in PRIOR_STRUCTURAL_STARTS else ()
+            nl_starts = tuple(by_name[p.name].refine_starts(actx))
+            pairs[i] = refine(actx, by_name[p.name], p, (a,), reference_bic=top.bic, extra_starts=from_prior,
+                              nl_starts=nl_starts, max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
         pairs.sort(key=lambda f: f.bic)
-        cand = pairs[0] if pairs else None
-        if cand is not None and cand.bic <= top.bic - threshold and cand.held_out_rms_m < top.held_out_rms_m:
+        # the selected pair: the smallest BIC among those that beat the top single by the threshold and
+        # predict the held-out span no worse
+        cand = next((p for p in pairs if p.bic <= top.bic - threshold
+                     and p.held_out_rms_m <= top.held_out_rms_m * (1 + HELD_OUT_TOLERANCE)), None)
+        if cand is not None:
             rank = {f.name: i for i, f in enumerate(singles)}
             a_name, b_name = cand.base[0], cand.name
             first, other = (a_name, b_name) if rank[a_name] <= rank[b_name] else (b_name, a_name)
@@ -380,5 +453,12 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
 
             best = next(f for f in singles if f.name == first)
             second = replace(cand, name=other, base=(first,), delta_bic=best.bic - cand.bic)
+            if other != cand.name:  # the pair's base is reported second: its parameters from the joint fit
+                a = next(f for f in singles if f.name == other)
+                second = replace(second, nl=a.nl, nl_std=a.nl_std, lin=cand.base_lin,
+                                 lin_std=np.full(cand.base_lin.size, np.nan),
+                                 physical=by_name[other].physical(a.nl, cand.base_lin),
+                                 physical_std={k: float("nan") for k in a.physical}, n_params=a.n_params,
+                                 effect=by_name[other])
     return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=singles,
                    best=best, second=second, pairs=pairs)
