@@ -476,9 +476,12 @@ class TimingSkew(Effect):
         return flat.reshape(out.shape)
 
 
-#: The candidate library, in report order.
+from .flexible_shaft import FlexibleShaft  # noqa: E402 - it builds on Effect and the helpers above
+
+#: The candidate library, in report order (``shaft_bending`` is the coupled equivalent beam with the
+#: decoupled pinned-pinned mode of :class:`ShaftBending` as its second variant).
 LIBRARY: tuple[Effect, ...] = (ResidualUnbalance(), TachometerOffset(), ProbeRunout(), Misalignment(),
-                               BearingCubic(), PedestalFlexibility(), ShaftBending(), ProbeGainOrientation(),
+                               BearingCubic(), PedestalFlexibility(), FlexibleShaft(), ProbeGainOrientation(),
                                TimingSkew())
 EFFECT_NAMES: tuple[str, ...] = tuple(e.name for e in LIBRARY)
 

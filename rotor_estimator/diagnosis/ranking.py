@@ -312,7 +312,7 @@ def _physical_std(effect: Effect, nl, nl_std, lin, lin_cov, draws: int = 200) ->
             lin_d = lin
         samples.append(effect.physical(nl_d, lin_d))
     keys = samples[0].keys() if samples else ()
-    return {k: float(np.nanstd([s[k] for s in samples])) for k in keys}
+    return {k: float(np.nanstd([s.get(k, np.nan) for s in samples])) for k in keys}
 
 
 @dataclass
