@@ -181,16 +181,17 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     lin_std = np.sqrt(np.abs(np.diag(lin_cov))) if lin.size else np.zeros(0)
     physical = effect.physical(nl, lin)
     physical_std = _physical_std(effect, nl, nl_std, lin, lin_cov)
-    b_val = bic(sol.rss_m2, sol.n_obs, NOMINAL_PARAMS + k_base + k_eff)
-    ref = reference_bic if reference_bic is not None else nominal_solution(ctx)[1]
     resid = (ctx.y_m - sol.prediction_m)[ctx.mask]
+    rss = float(np.sum(resid ** 2))  # from the prediction itself: immune to an ill-conditioned solve
+    b_val = bic(rss, sol.n_obs, NOMINAL_PARAMS + k_base + k_eff)
+    ref = reference_bic if reference_bic is not None else nominal_solution(ctx)[1]
     eff_off = off
     eff_cols = cols
     if effect.nl_names and cols.shape[2] == 0:
         eff_cols = np.zeros((n, 4, 0))
     return EffectFit(name=effect.name, base=tuple(b.name for b in base), nl=nl, nl_std=nl_std, lin=lin,
                      lin_std=lin_std, physical=physical, physical_std=physical_std, n_params=k_eff,
-                     rss_m2=sol.rss_m2, n_obs=sol.n_obs, bic=b_val, delta_bic=ref - b_val,
+                     rss_m2=rss, n_obs=sol.n_obs, bic=b_val, delta_bic=ref - b_val,
                      held_out_rms_m=held_out_rms(ctx, all_off, all_cols),
                      residual_rms_m=np.sqrt(np.mean(resid ** 2, axis=0)), coefficients=coefficients_after(ctx, sol),
                      prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect,
@@ -272,6 +273,10 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
                 polished.append(r)
         results = sorted(polished, key=lambda r: r.cost)
     res = results[0]
+    if not _stable(ctx, res.x[:8] * COEFFICIENT_SCALE):
+        # the rigid nominal with these coefficients diverges (possible with a pedestal or a hardening in the
+        # loop): linearizing about it gives meaningless columns and residuals, so the refit is not used
+        return best
     try:
         ctx_new = recentered(ctx, res.x[:8] * COEFFICIENT_SCALE)
         new = fit_effect(ctx_new, effect, tuple(_refit_base(ctx_new, b) for b in base),
