@@ -60,6 +60,7 @@ import numpy as np
 import scipy.linalg
 
 from ..config import RigConfig
+from ..flexible.fe_rotor import hermite_shape, subdivide
 from ..model import RotorMatrices, damping_matrix, point_force_weights, rotor_matrices, stiffness_matrix
 from . import models
 from .context import FitContext
@@ -120,12 +121,8 @@ def equivalent_beam(rig: RigConfig, min_elements: int = MIN_ELEMENTS) -> Equival
     if m_disk < 0.0:
         length = float(np.sqrt(12.0 * it_beam / m))
         mu, m_disk = m / length, 0.0
-    key = np.unique(np.round(np.concatenate([[-length / 2, 0.0, length / 2], stations]), 12))
-    nodes = [key[0]]
-    for a, b in zip(key[:-1], key[1:]):
-        n = max(1, int(np.ceil((b - a) / (length / min_elements) - 1e-9)))
-        nodes.extend(a + (b - a) * np.arange(1, n + 1) / n)
-    return EquivalentBeam(length, mu, m_disk, i_disk, ip, np.array(nodes))
+    nodes = subdivide(np.concatenate([[-length / 2, 0.0, length / 2], stations]), length / min_elements)
+    return EquivalentBeam(length, mu, m_disk, i_disk, ip, nodes)
 
 
 def plane_matrices(beam: EquivalentBeam) -> tuple[np.ndarray, np.ndarray]:
@@ -155,16 +152,7 @@ def plane_matrices(beam: EquivalentBeam) -> tuple[np.ndarray, np.ndarray]:
 
 def plane_row(nodes_m: np.ndarray, station_m: float, slope: bool = False) -> np.ndarray:
     """Row giving the displacement (or slope) at a station by cubic Hermite interpolation."""
-    z = float(np.clip(station_m, nodes_m[0], nodes_m[-1]))
-    e = int(np.clip(np.searchsorted(nodes_m, z, side="right") - 1, 0, nodes_m.size - 2))
-    ll = nodes_m[e + 1] - nodes_m[e]
-    s = (z - nodes_m[e]) / ll
-    if slope:
-        shape = np.array([(-6 * s + 6 * s ** 2) / ll, 1 - 4 * s + 3 * s ** 2, (6 * s - 6 * s ** 2) / ll,
-                          -2 * s + 3 * s ** 2])
-    else:
-        shape = np.array([1 - 3 * s ** 2 + 2 * s ** 3, ll * (s - 2 * s ** 2 + s ** 3), 3 * s ** 2 - 2 * s ** 3,
-                          ll * (-s ** 2 + s ** 3)])
+    e, shape = hermite_shape(nodes_m, station_m, slope)
     row = np.zeros(2 * nodes_m.size)
     row[2 * e:2 * e + 4] = shape
     return row

@@ -23,7 +23,7 @@ import numpy as np
 from .description import RotorDescription
 
 __all__ = ["FERotor", "assemble", "timoshenko_element", "shear_coefficient", "mesh_nodes",
-           "hermite_row", "DOF_PER_NODE"]
+           "hermite_row", "hermite_shape", "subdivide", "DOF_PER_NODE"]
 
 DOF_PER_NODE = 4
 _PLANE_X = np.array([0, 2, 4, 6])  # [x1, phi_x1, x2, phi_x2] within an element's 8 DOFs
@@ -86,25 +86,38 @@ def mesh_nodes(rotor: RotorDescription) -> np.ndarray:
     ends = np.concatenate([[0.0], np.cumsum([s.length_m for s in rotor.sections])])
     feats = [d.station_axial_m for d in rotor.disks] + [b.station_axial_m for b in rotor.bearings] + \
             [u.station_axial_m for u in rotor.unbalances]
-    key = np.unique(np.round(np.concatenate([ends, feats]), 12))
+    return subdivide(np.concatenate([ends, feats]), rotor.options.max_element_length_m)
+
+
+def subdivide(key_points_m: np.ndarray, max_element_length_m: float) -> np.ndarray:
+    """Sorted unique key points (rounded to 1e-12 m), each interval split evenly so that no
+    element is longer than ``max_element_length_m``."""
+    key = np.unique(np.round(np.asarray(key_points_m, dtype=float), 12))
     nodes = [key[0]]
     for a, b in zip(key[:-1], key[1:]):
-        n = max(1, int(math.ceil((b - a) / rotor.options.max_element_length_m - 1e-9)))
+        n = max(1, int(math.ceil((b - a) / max_element_length_m - 1e-9)))
         nodes.extend(a + (b - a) * np.arange(1, n + 1) / n)
     return np.array(nodes)
 
 
-def hermite_row(nodes_m: np.ndarray, station_axial_m: float, direction: str, n_dof: int,
-                derivative: int = 0) -> np.ndarray:
-    """Row mapping q to the lateral displacement (``derivative=0``) of the shaft at any
-    station, by cubic Hermite interpolation of the element's end translations and slopes
-    (exact at nodes)."""
+def hermite_shape(nodes_m: np.ndarray, station_axial_m: float, slope: bool = False) -> tuple[int, np.ndarray]:
+    """Element index and the 4 cubic Hermite shape values ``[w_a, w'_a, w_b, w'_b]`` at a station
+    (their axial derivative with ``slope=True``); stations outside the mesh are clipped to its ends."""
     z = float(np.clip(station_axial_m, nodes_m[0], nodes_m[-1]))
     e = int(np.clip(np.searchsorted(nodes_m, z, side="right") - 1, 0, len(nodes_m) - 2))
     L = nodes_m[e + 1] - nodes_m[e]
     s = (z - nodes_m[e]) / L
-    shape = np.array([1 - 3 * s ** 2 + 2 * s ** 3, L * (s - 2 * s ** 2 + s ** 3), 3 * s ** 2 - 2 * s ** 3,
-                      L * (-s ** 2 + s ** 3)])
+    if slope:
+        return e, np.array([(-6 * s + 6 * s ** 2) / L, 1 - 4 * s + 3 * s ** 2, (6 * s - 6 * s ** 2) / L,
+                            -2 * s + 3 * s ** 2])
+    return e, np.array([1 - 3 * s ** 2 + 2 * s ** 3, L * (s - 2 * s ** 2 + s ** 3), 3 * s ** 2 - 2 * s ** 3,
+                        L * (-s ** 2 + s ** 3)])
+
+
+def hermite_row(nodes_m: np.ndarray, station_axial_m: float, direction: str, n_dof: int) -> np.ndarray:
+    """Row mapping q to the lateral displacement of the shaft at any station, by cubic
+    Hermite interpolation of the element's end translations and slopes (exact at nodes)."""
+    e, shape = hermite_shape(nodes_m, station_axial_m)
     row = np.zeros(n_dof)
     off = 0 if direction == "x" else 1
     base = DOF_PER_NODE * e
