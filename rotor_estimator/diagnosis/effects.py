@@ -73,13 +73,19 @@ class Effect:
         return signal_m
 
 
+def rotating_mass_force(ctx: FitContext, phase_rad: float, moment_kg_m: float,
+                        harmonic: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Point force ``(fx, fy)`` (N each) of a rotating mass ``m r`` at phase ``phase_rad`` from the
+    keyphasor mark: ``m r (w^2 cos a + w' sin a, w^2 sin a - w' cos a)`` (Eq. 5 before the lever rule)."""
+    a = harmonic * ctx.shaft.angle_rad + phase_rad
+    w, acc = ctx.shaft.speed_rad_s, ctx.shaft.accel_rad_s2
+    return moment_kg_m * (w * w * np.cos(a) + acc * np.sin(a)), moment_kg_m * (w * w * np.sin(a) - acc * np.cos(a))
+
+
 def _unbalance_force(ctx: FitContext, axial_position_m: float, phase_rad: float, moment_kg_m: float,
                      harmonic: int = 1) -> np.ndarray:
     """Generalized force of a rotating mass ``m r`` at ``axial_position_m`` (Eq. 5, single plane)."""
-    a = harmonic * ctx.shaft.angle_rad + phase_rad
-    w, acc = ctx.shaft.speed_rad_s, ctx.shaft.accel_rad_s2
-    fx = moment_kg_m * (w * w * np.cos(a) + acc * np.sin(a))
-    fy = moment_kg_m * (w * w * np.sin(a) - acc * np.cos(a))
+    fx, fy = rotating_mass_force(ctx, phase_rad, moment_kg_m, harmonic)
     return models.point_generalized_force(ctx.rig, axial_position_m, fx, fy)
 
 
@@ -319,11 +325,10 @@ def modal_forces(ctx: FitContext) -> tuple[np.ndarray, np.ndarray]:
     rig = ctx.rig
     smooth = np.zeros((ctx.t_s.size, 2))
     for u in rig.imbalances:
-        a = ctx.shaft.angle_rad + u.phase_rad
-        w, acc = ctx.shaft.speed_rad_s, ctx.shaft.accel_rad_s2
         phi = float(models.mode_shape(rig, u.axial_position_m))
-        smooth[:, 0] += phi * u.moment_kg_m * (w * w * np.cos(a) + acc * np.sin(a))
-        smooth[:, 1] += phi * u.moment_kg_m * (w * w * np.sin(a) - acc * np.cos(a))
+        fx, fy = rotating_mass_force(ctx, u.phase_rad, u.moment_kg_m)
+        smooth[:, 0] += phi * fx
+        smooth[:, 1] += phi * fy
     step = float(models.mode_shape(rig, rig.impact_position_m)) * ctx.impact_force_n
     return smooth, step
 

@@ -64,7 +64,7 @@ from ..flexible.fe_rotor import hermite_shape, subdivide
 from ..model import RotorMatrices, damping_matrix, point_force_weights, rotor_matrices, stiffness_matrix
 from . import models
 from .context import FitContext
-from .effects import Effect
+from .effects import Effect, rotating_mass_force
 from .linsim import simulate_linear
 
 #: Free-free bending modes kept per plane (plus one residual-flexibility shape per bearing).
@@ -311,11 +311,8 @@ def point_forces(ctx: FitContext) -> tuple[np.ndarray, np.ndarray]:
     rig = ctx.rig
     n_u = len(rig.imbalances)
     smooth = np.zeros((ctx.t_s.size, 2 * n_u + 2))
-    w, acc = ctx.shaft.speed_rad_s, ctx.shaft.accel_rad_s2
     for i, u in enumerate(rig.imbalances):
-        a = ctx.shaft.angle_rad + u.phase_rad
-        smooth[:, 2 * i] = u.moment_kg_m * (w * w * np.cos(a) + acc * np.sin(a))
-        smooth[:, 2 * i + 1] = u.moment_kg_m * (w * w * np.sin(a) - acc * np.cos(a))
+        smooth[:, 2 * i], smooth[:, 2 * i + 1] = rotating_mass_force(ctx, u.phase_rad, u.moment_kg_m)
     step = np.zeros_like(smooth)
     step[:, 2 * n_u:] = ctx.impact_force_n
     return smooth, step

@@ -22,17 +22,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import RigConfig
-from ..model import RotorMatrices, damping_matrix, point_force_weights, stiffness_matrix
+from ..model import RotorMatrices, damping_matrix, point_force_weights, state_matrix, stiffness_matrix
 
 
 def rigid_state_matrix(mats: RotorMatrices, coefficients: np.ndarray, speed_rad_s: float) -> np.ndarray:
-    """8x8 ``A`` of Eq. 2 with state ``[v, z]``."""
-    minv = mats.mass_inverse
-    a = np.zeros((8, 8))
-    a[:4, :4] = -minv @ (damping_matrix(coefficients) + speed_rad_s * mats.gyro_matrix)
-    a[:4, 4:] = -minv @ stiffness_matrix(coefficients)
-    a[4:, :4] = np.eye(4)
-    return a
+    """8x8 ``A`` of Eq. 2 with state ``[v, z]`` (the core's :func:`rotor_estimator.model.state_matrix`)."""
+    return state_matrix(mats, coefficients, speed_rad_s)
 
 
 def rigid_input(mats: RotorMatrices) -> np.ndarray:

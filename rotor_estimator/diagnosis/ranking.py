@@ -247,8 +247,8 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     starts = [(r, fit.nl) for r in (fit.coefficients, *extra_starts)]
     starts += [(fit.coefficients, np.asarray(p, float)) for p in nl_starts]
     starts += [(np.asarray(r, float), np.asarray(p, float)) for r, p in start_pairs]
-    results = []
     starts = [(r if _stable(ctx, r) else ctx.coefficients, p) for r, p in starts]  # an unstable start cannot move
+    results = []
     for r_start, nl_start in starts:
         x0 = np.concatenate([np.asarray(r_start, float) / COEFFICIENT_SCALE, nl_start])
         x0 = np.clip(x0, lo + 1e-9, hi - 1e-9) if n_nl else x0
@@ -288,10 +288,10 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
 
 def _stable(ctx: FitContext, coefficients: np.ndarray) -> bool:
     """True when the nominal rigid model (Eq. 2) with ``coefficients`` is asymptotically stable at the mean speed."""
-    from . import models
+    from ..model import state_matrix
 
     try:
-        a = models.rigid_state_matrix(ctx.mats, np.asarray(coefficients, float), ctx.mean_speed_rad_s)
+        a = state_matrix(ctx.mats, np.asarray(coefficients, float), ctx.mean_speed_rad_s)
         return bool(np.all(np.isfinite(a)) and np.max(np.linalg.eigvals(a).real) < 0.0)
     except np.linalg.LinAlgError:
         return False
