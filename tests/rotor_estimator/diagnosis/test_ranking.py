@@ -66,3 +66,23 @@ def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
     skew = [rk.second.physical.get(f"skew_{c}_s", math.nan) for c in ("yp1", "xp2", "yp2")] \
         if rk.second.name == "timing_skew" else [rk.best.physical[f"skew_{c}_s"] for c in ("yp1", "xp2", "yp2")]
     assert np.allclose(skew, effects.skew_s, atol=15e-6)
+
+
+def test_soft_pedestal_that_drags_the_nominal_fit_off_is_found_with_its_frequency():
+    """A 60 Hz pedestal (below the running speed) drags the nominal fit into a basin with a negative kxx,
+    about which the pedestal's first pass finds nothing; its joint refit from the prior must still reach
+    the true basin (within 3 % in frequency) and win, not a 1.4 kHz "pedestal" on a diverging rigid model.
+
+    The case is the seed-2031 blind set's case_004, a near-limit (1.5x) gap.
+    """
+    from rotor_estimator.diagnosis import blind
+
+    case = blind.make_case("c", ("pedestal",), 2031004, near_limit=True)
+    m, k, _ = case.label["effects_params"]["pedestal"]
+    ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)
+    truth = np.asarray(case.label["true_coefficients"])
+    assert np.max(np.abs(ctx.coefficients / truth - 1)[:4]) > 1.0, "the nominal fit is no longer dragged off"
+    rk = rank_effects(ctx, second_stage=False)
+    assert rk.best is not None and rk.best.name == "pedestal", [(f.name, round(f.delta_bic)) for f in rk.singles[:3]]
+    assert abs(rk.best.physical["pedestal_frequency_hz"] / (math.sqrt(k / m) / (2 * math.pi)) - 1) < 0.03
+    assert np.max(np.abs(rk.best.coefficients / truth - 1)[[0, 3]]) < 0.1
