@@ -6,7 +6,9 @@ The diagnosis step reads only ``cases/<id>/recording.npz`` and ``rig.yaml``; the
 Scores: confusion matrix (truth rows, verdict columns), top-1 and top-2 accuracy (a pair
 case counts top-1 when the verdict is one of its effects and top-2 when both are in the
 verdict's top two), accuracy where the gap is clear (nominal RMS >= 1.5 x the realized
-noise RMS), false alarms on controls, and the shrink error ``|predicted / true - 1|`` with
+noise RMS), pairs with both effects in the top two (all pairs, and apart those whose two
+effects each show beyond the coefficients and the partner's model, the label's
+``effect_gap``), false alarms on controls, and the shrink error ``|predicted / true - 1|`` with
 ``true = nominal residual RMS / realized noise RMS`` (the residual of the generating model).
 """
 from __future__ import annotations
@@ -18,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .blind import load_recording, write_blind_set
+from .blind import MIN_GAP, load_recording, write_blind_set
 
 
 def _single_thread_worker() -> None:
@@ -77,8 +79,13 @@ def score(results: list[dict], labels: dict) -> dict:
             shrink_err = abs(r["shrink_ratio"] / gap - 1.0)
         key = "+".join(truth) if truth else "none"
         cm_labels |= {key, best}
+        # a pair both of whose effects show beyond the coefficients and the partner's model (the label's
+        # effect_gap; None when the label has none)
+        own = lab.get("effect_gap") or {}
+        separable = min(own.values()) >= MIN_GAP if len(truth) == 2 and len(own) == 2 else None
         rows.append({"case": r["case"], "truth": key, "verdict": best, "top1": t1, "top2": t2, "gap": gap,
-                     "generator": lab["generator"], "shrink_error": shrink_err, "seconds": r.get("seconds", 0.0)})
+                     "generator": lab["generator"], "shrink_error": shrink_err, "seconds": r.get("seconds", 0.0),
+                     "pair_separable": separable})
     arr = lambda k, sel=None: np.array([x[k] for x in rows if sel is None or sel(x)], dtype=float)  # noqa: E731
     controls = [x for x in rows if x["truth"] == "none"]
     clear = lambda x: x["gap"] >= 1.5 and x["truth"] != "none"  # noqa: E731
@@ -95,6 +102,7 @@ def score(results: list[dict], labels: dict) -> dict:
             "shrink_error_median": float(np.median(shrink)) if shrink.size else float("nan"),
             "shrink_within_20pct": float(np.mean(shrink <= 0.2)) if shrink.size else float("nan"),
             "pairs_both_in_top2": [x["top2"] for x in rows if "+" in x["truth"]],
+            "separable_pairs_both_in_top2": [x["top2"] for x in rows if x["pair_separable"]],
             "ross_top1": [x["top1"] for x in rows if x["generator"] == "ross"],
             "mean_seconds_per_case": float(arr("seconds").mean()),
             "rows": rows, "confusion": _confusion(rows)}
@@ -122,7 +130,9 @@ def format_score(s: dict) -> str:
             f"top-1 where gap >= 1.5x  {100 * s['top1_clear_gap']:.1f} %",
             f"top-1 near limit         {100 * s['top1_near_limit']:.1f} %",
             f"false alarms on controls {s['false_alarms']} / {s['controls']}",
-            f"pairs with both in top 2 {sum(s['pairs_both_in_top2'])} / {len(s['pairs_both_in_top2'])}",
+            f"pairs with both in top 2 {sum(s['pairs_both_in_top2'])} / {len(s['pairs_both_in_top2'])} "
+            f"(each effect's own gap >= {MIN_GAP}x: {sum(s['separable_pairs_both_in_top2'])} / "
+            f"{len(s['separable_pairs_both_in_top2'])})",
             f"ROSS cases top-1         {sum(s['ross_top1'])} / {len(s['ross_top1'])}",
             f"shrink error median      {100 * s['shrink_error_median']:.1f} %, within 20 %: "
             f"{100 * s['shrink_within_20pct']:.1f} % of detected cases",

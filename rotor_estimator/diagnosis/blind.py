@@ -113,6 +113,59 @@ def _absorption_basis(rig, scenario, base_clean, first):
     return q
 
 
+#: Harmonics of shaft speed a runout pattern (fixed in shaft angle) spans in a partner's absorption basis.
+RUNOUT_HARMONICS = 4
+
+
+def _partner_columns(name: str, rig, scenario, base_clean, first) -> list[np.ndarray]:
+    """Columns (flattened like :func:`_absorption_basis`) spanning what the linear effect ``name`` can absorb.
+
+    In a pair, each effect's gap is the part of its signal that neither the 8 coefficients nor its
+    partner's model can explain: a runout pattern (any signal fixed in shaft angle, per channel), a
+    residual unbalance (the response to a force at each imbalance plane), a 2X misalignment force, or
+    a probe gain and angle error (linearized: each channel's own and its plane partner's signal).
+    Nonlinear partners (hardening, pedestal, bending mode, skew) return no columns.
+    """
+    clean = base_clean[first:]
+    n = clean.shape[0]
+    cols = []
+    if name == "probe_runout":
+        theta = scenario.speed_rad_s * np.arange(n) * rig.sample_period_s  # the span is phase-independent
+        for c in range(4):
+            for h in range(1, RUNOUT_HARMONICS + 1):
+                for wave in (np.cos(h * theta), np.sin(h * theta)):
+                    col = np.zeros((n, 4))
+                    col[:, c] = wave
+                    cols.append(col.ravel())
+    elif name in ("residual_unbalance", "misalignment"):
+        unit = 1e-5 if name == "residual_unbalance" else 1.0
+        field_name = "residual_unbalance_kg_m" if name == "residual_unbalance" else "misalignment_n"
+        for i in range(4):
+            v = [0.0] * 4
+            v[i] = unit
+            y = simulate_with_effects(rig, scenario, HiddenEffects(**{field_name: tuple(v)}), noise=False).clean_m
+            cols.append(((y - base_clean) / unit)[first:].ravel())
+    elif name == "probe_gain_orientation":
+        for c in range(4):
+            gain, angle = np.zeros((n, 4)), np.zeros((n, 4))
+            gain[:, c] = clean[:, c]
+            angle[:, c] = clean[:, c + 1] if c % 2 == 0 else -clean[:, c - 1]
+            cols += [gain.ravel(), angle.ravel()]
+    return cols
+
+
+def _with_columns(q: np.ndarray, cols: list[np.ndarray]) -> np.ndarray:
+    """Orthonormal basis of ``q`` extended by ``cols``."""
+    if not cols:
+        return q
+    a = np.column_stack(cols)
+    a = a - q @ (q.T @ a)
+    norm = np.linalg.norm(a, axis=0)
+    keep = norm > 1e-9 * max(float(norm.max()), 1e-300)
+    extra, _ = np.linalg.qr(a[:, keep] / norm[keep])
+    return np.hstack([q, extra])
+
+
 def nominal_unabsorbed_rms(recording: RigRecording, rig, starts, *, max_nfev: int = 25) -> float:
     """RMS (m) of a noise-free record left after the diagnosis's own nominal output-error fit.
 
@@ -155,8 +208,9 @@ def nominal_unabsorbed_rms(recording: RigRecording, rig, starts, *, max_nfev: in
 
 
 def calibrate(rig, scenario, names, rng, target_rms_m, *, prior_coefficients=None,
-              outer_iterations: int = 3) -> tuple[HiddenEffects, dict, float]:
-    """Effect strengths whose residual after the nominal fit hits ``target_rms_m``; also the RMS reached (m).
+              outer_iterations: int = 3) -> tuple[HiddenEffects, dict, float, dict]:
+    """Effect strengths whose residual after the nominal fit hits ``target_rms_m``; also the RMS reached (m)
+    and each effect's own part (m): what neither the coefficients nor a partner's model absorbs.
 
     Two stages: (1) per effect, a secant in log-log on the part the 8 coefficient
     sensitivities cannot absorb (linear, cheap); (2) all strengths scaled jointly so that
@@ -169,12 +223,16 @@ def calibrate(rig, scenario, names, rng, target_rms_m, *, prior_coefficients=Non
     base = simulate_with_effects(rig, scenario, HiddenEffects(), noise=False).clean_m
     ctx["cubic_cap"] = _cubic_cap(ctx, np.asarray(scenario.coefficients, float), base[first:])
     q = _absorption_basis(rig, scenario, base, first)
+    # in a pair, each effect's part is what neither the coefficients nor its partner's model absorbs
+    q_of = {name: _with_columns(q, [c for other in names if other != name
+                                    for c in _partner_columns(other, rig, scenario, base, first)])
+            for name in names}
     strengths = {}
     for name, target in zip(names, target_rms_m):
         s, slope = 1.0, 1.0
         prev = None
         for _ in range(8):
-            a = _unabsorbed_rms(rig, scenario, HiddenEffects(**_shape(name, s, rng, ctx)), base, q, first)
+            a = _unabsorbed_rms(rig, scenario, HiddenEffects(**_shape(name, s, rng, ctx)), base, q_of[name], first)
             if a <= 0:
                 s *= 10
                 continue
@@ -224,7 +282,9 @@ def calibrate(rig, scenario, names, rng, target_rms_m, *, prior_coefficients=Non
             achieved = nominal_unabsorbed_rms(rec, rig, starts)
         except Exception:  # noqa: BLE001
             achieved = float("nan")
-    return effects, strengths, achieved
+    parts = {name: _unabsorbed_rms(rig, scenario, HiddenEffects(**_shape(name, strengths[name], rng, ctx)), base,
+                                   q_of[name], first) for name in names}
+    return effects, strengths, achieved, parts
 
 
 #: Largest strength of each effect that is still realistic on a small rig (see :func:`_shape` for the units):
@@ -286,7 +346,9 @@ def make_case(case_id: str, names: tuple[str, ...], seed: int, *, near_limit: bo
     :data:`MIN_GAP` under the drawn conditions (speed, noise, impacts, coefficients), the
     conditions are drawn again (at most :data:`MAX_REDRAWS` times; the label counts the
     redraws), so every case lies in the intended 1.2-4x range instead of being
-    invisible by construction.
+    invisible by construction. In a pair, each effect must also reach it with its own part
+    (beyond the coefficients and its partner's model; label ``effect_gap``): an effect its
+    partner can absorb whole is not a second effect the data show.
     """
     rng = np.random.default_rng(seed)
     rig_file = rig_file or load_rig_file()
@@ -301,18 +363,22 @@ def make_case(case_id: str, names: tuple[str, ...], seed: int, *, near_limit: bo
         rig = replace(base_rig, speed_rad_s=speed, noise_std_m=noise)
         gaps = [float(rng.uniform(MIN_GAP, 2.0) if near_limit else rng.uniform(2.0, 4.0)) for _ in names]
         if not names:
-            effects, strengths = HiddenEffects(), {}
+            effects, strengths, effect_gaps = HiddenEffects(), {}, {}
             break
         targets = [math.sqrt(g * g - 1) * noise / math.sqrt(len(names)) for g in gaps]
-        effects, strengths, reached_m = calibrate(
+        effects, strengths, reached_m, parts_m = calibrate(
             rig, scenario, names, rng, targets, prior_coefficients=rig_file.estimator.initial_coefficients.as_array())
-        if not math.isfinite(reached_m) or math.sqrt(1 + (reached_m / noise) ** 2) >= MIN_GAP:
+        # each effect's own gap: its part beyond the coefficients and its partner, as if it held the whole share
+        effect_gaps = {k: math.sqrt(1 + len(names) * (v / noise) ** 2) for k, v in parts_m.items()}
+        total_ok = not math.isfinite(reached_m) or math.sqrt(1 + (reached_m / noise) ** 2) >= MIN_GAP
+        if total_ok and (len(names) < 2 or all(g >= MIN_GAP for g in effect_gaps.values())):
             break
     sim = simulate_with_effects(rig, scenario, effects, seed=seed + 1)
     first = int(round(WARMUP_S / rig.sample_period_s))
     seen_rig = replace(rig, true_coefficients=None)
     label = {"effects": list(names), "generator": "effect_sim", "near_limit_target": near_limit,
-             "target_gap": gaps, "strengths": strengths, "noise_std_m": noise, "redraws": redraw,
+             "target_gap": gaps, "effect_gap": effect_gaps, "strengths": strengths, "noise_std_m": noise,
+             "redraws": redraw,
              "noise_rms_m": float(np.sqrt(np.mean(sim.noise_m[first:] ** 2))), "speed_rpm": speed * 30 / math.pi,
              "true_coefficients": [float(v) for v in r_true], "effects_params": _jsonable(effects.__dict__)}
     return BlindCase(case_id, sim.recording, RigFile(rig=seen_rig, estimator=rig_file.estimator), label)
