@@ -108,9 +108,7 @@ def _absorption_basis(rig, scenario, base_clean, first):
         dc = np.zeros((n, 4))
         dc[:, c] = 1.0
         cols.append(dc.ravel())
-    a = np.column_stack(cols)
-    q, _ = np.linalg.qr(a / np.linalg.norm(a, axis=0))
-    return q
+    return _with_columns(np.zeros((len(cols[0]), 0)), cols)
 
 
 #: Harmonics of shaft speed a runout pattern (fixed in shaft angle) spans in a partner's absorption basis.
@@ -155,14 +153,15 @@ def _partner_columns(name: str, rig, scenario, base_clean, first) -> list[np.nda
 
 
 def _with_columns(q: np.ndarray, cols: list[np.ndarray]) -> np.ndarray:
-    """Orthonormal basis of ``q`` extended by ``cols``."""
+    """Orthonormal basis of ``q`` extended by ``cols`` (each unit-normed first: their scales differ by 10^12)."""
     if not cols:
         return q
     a = np.column_stack(cols)
-    a = a - q @ (q.T @ a)
-    norm = np.linalg.norm(a, axis=0)
-    keep = norm > 1e-9 * max(float(norm.max()), 1e-300)
-    extra, _ = np.linalg.qr(a[:, keep] / norm[keep])
+    a = a / np.maximum(np.linalg.norm(a, axis=0), 1e-300)
+    if q.shape[1]:
+        a = a - q @ (q.T @ a)
+    keep = np.linalg.norm(a, axis=0) > 1e-9  # a column already in span(q) adds nothing
+    extra, _ = np.linalg.qr(a[:, keep])
     return np.hstack([q, extra])
 
 
