@@ -93,6 +93,10 @@ class FitContext:
     known_step_n: np.ndarray             # (N, 4) generalized impact force
     prior_coefficients: np.ndarray       # (8,) r0 of the estimator configuration
     _cache: dict = field(default_factory=dict)
+    #: The model forces are sent through by :meth:`response`: ``(build_a(speed) -> A, B, C)`` with the rigid
+    #: model's generalized-force input (N, 4) and output rows (probe displacements, then velocities);
+    #: ``None`` is the rigid nominal of Eq. 2. A structural effect (pedestal) sets it for its pair partner.
+    response_model: tuple | None = None
 
     @property
     def sample_rate_hz(self) -> float:
@@ -111,16 +115,19 @@ class FitContext:
     def dc_offset_m(self) -> np.ndarray:
         return (self.y_m - self.y_nom_m)[self.mask].mean(axis=0)
 
-    def response(self, u_smooth: np.ndarray, u_step: np.ndarray | None = None, *,
-                 coefficients: np.ndarray | None = None, velocity: bool = False) -> np.ndarray:
-        """Probe output (N, 4) of the nominal rigid model driven by generalized forces (N, 4)."""
-        r = self.coefficients if coefficients is None else coefficients
-        cache = self._cache.setdefault(tuple(np.round(r, 9)), {}) if coefficients is None else None
-        mats = self.mats
-        out, _ = simulate_linear(lambda w: models.rigid_state_matrix(mats, r, w), models.rigid_input(mats),
-                                 models.rigid_output(mats), self.period_s, self.schedule, self.shaft.angle_rad,
-                                 u_smooth, u_step, cache=cache)
-        return out[:, 4:] if velocity else out[:, :4]
+    def response(self, u_smooth: np.ndarray, u_step: np.ndarray | None = None) -> np.ndarray:
+        """Probe output (N, 4) of the nominal rigid model (or :attr:`response_model`) driven by generalized
+        forces (N, 4)."""
+        r = self.coefficients
+        if self.response_model is None:
+            mats = self.mats
+            build_a, b, c = (lambda w: models.rigid_state_matrix(mats, r, w)), models.rigid_input(mats), \
+                models.rigid_output(mats)
+        else:
+            build_a, b, c = self.response_model
+        out, _ = simulate_linear(build_a, b, c, self.period_s, self.schedule, self.shaft.angle_rad, u_smooth, u_step,
+                                 cache=self._cache.setdefault(("response", tuple(np.round(r, 9))), {}))
+        return out[:, :4]
 
     @property
     def period_s(self) -> float:

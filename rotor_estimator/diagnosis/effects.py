@@ -72,6 +72,14 @@ class Effect:
         """The effect applied to another contribution ``signal_m`` ((N,4) or (N,4,k)); identity by default."""
         return signal_m
 
+    #: True for a force effect: its contribution is the response to a force (``ctx.response``), so in a
+    #: pair with a structural effect it is the response through that effect's model (:meth:`carrier`).
+    forcing: ClassVar[bool] = False
+
+    def carrier(self, ctx: FitContext, nl: np.ndarray) -> FitContext | None:
+        """``ctx`` with its force response sent through this effect's structural model; ``None`` if it has none."""
+        return None
+
 
 def rotating_mass_force(ctx: FitContext, phase_rad: float, moment_kg_m: float,
                         harmonic: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -101,6 +109,7 @@ def unbalance_planes(ctx: FitContext) -> tuple[float, float]:
 class ResidualUnbalance(Effect):
     """Unknown residual unbalance in two correction planes (1X forcing through Eq. 2)."""
 
+    forcing: ClassVar[bool] = True
     name: ClassVar[str] = "residual_unbalance"
     description: ClassVar[str] = "unknown residual unbalance in two planes (1X forward forcing)"
 
@@ -122,6 +131,7 @@ class ResidualUnbalance(Effect):
 class TachometerOffset(Effect):
     """Keyphasor mark off by an angle: the known imbalance is applied at ``angle + offset``."""
 
+    forcing: ClassVar[bool] = True
     name: ClassVar[str] = "tach_offset"
     description: ClassVar[str] = "keyphasor angular offset (imbalance phase reference rotated)"
     nl_names: ClassVar[tuple[str, ...]] = ("offset_rad",)
@@ -179,6 +189,7 @@ class ProbeRunout(Effect):
 class Misalignment(Effect):
     """Coupling misalignment: a 2X force at the drive-end bearing (its static preload only shifts DC)."""
 
+    forcing: ClassVar[bool] = True
     name: ClassVar[str] = "misalignment"
     description: ClassVar[str] = "coupling misalignment, 2X force at bearing 1 (x and y)"
 
@@ -307,12 +318,18 @@ class PedestalFlexibility(Effect):
         return m, k, 2 * zeta * np.sqrt(k * m)
 
     def basis(self, ctx, nl):
+        y = self.carrier(ctx, nl).response(ctx.known_smooth_n, ctx.known_step_n)
+        return y - ctx.y_nom_m, np.zeros((ctx.t_s.size, 4, 0))
+
+    def carrier(self, ctx, nl):
+        """The context whose forces (a partner's unbalance, misalignment) act on the shaft on its pedestals."""
+        from dataclasses import replace
+
         m, k, c = self.housing(nl)
         mats, r = ctx.mats, ctx.coefficients
-        out, _ = simulate_linear(lambda w: models.pedestal_state_matrix(mats, r, w, m, k, c),
-                                 models.pedestal_input(mats), models.pedestal_output(mats), ctx.period_s,
-                                 ctx.schedule, ctx.shaft.angle_rad, ctx.known_smooth_n, ctx.known_step_n)
-        return out[:, :4] - ctx.y_nom_m, np.zeros((ctx.t_s.size, 4, 0))
+        model = (lambda w: models.pedestal_state_matrix(mats, r, w, m, k, c), models.pedestal_input(mats),
+                 models.pedestal_output(mats))
+        return replace(ctx, response_model=model, _cache={})
 
     def physical(self, nl, lin):
         m, k, c = self.housing(nl)

@@ -60,8 +60,10 @@ FORCING_1X = ("residual_unbalance", "tach_offset")
 PRIOR_STRUCTURAL_STARTS = ("bearing_cubic", "pedestal", "shaft_bending")
 #: Effects whose pair on the top single is always refitted jointly, whatever its first pass: a hardening
 #: shows only once the coefficients move back from the stiffer values the top single's fit absorbed it
-#: into, and a pedestal carries its partner's forcing, which the first pass sends through the rigid model
-#: (unbalance + pedestal was missed that way). The bending mode is left out for time (40 s a case).
+#: into. A pedestal is also refitted on every leading force effect it carries (:meth:`.Effect.carrier`):
+#: its first pass linearizes about the coefficients that force's single fit dragged to absorb the
+#: pedestal's own response (unbalance + pedestal was missed that way). The bending mode is left out for
+#: time (40 s a case).
 ALWAYS_REFINED_PAIRS = ("bearing_cubic", "pedestal")
 
 
@@ -128,6 +130,35 @@ def _compose(ctx: FitContext, effect: Effect, nl: np.ndarray, base_effects: list
     return base_off, base_cols, off, cols
 
 
+def _parts(ctx: FitContext, effect: Effect, nl: np.ndarray, base: tuple[EffectFit, ...],
+           base_parts: tuple[np.ndarray | None, np.ndarray] | None = None):
+    """Each member's own contribution ``(base offset, base columns, offset, columns)`` before :func:`_compose`.
+
+    A force effect paired with a structural one is the response to its force through the structural
+    model (:meth:`.Effect.carrier`: an unbalance on a shaft on flexible pedestals), not through the rigid
+    nominal's. ``base_parts``, when given, are the base's precomputed offset and columns (valid when no
+    base member is carried by ``effect``).
+    """
+    members = [(effect, nl)] + [(b.effect, b.nl) for b in base]
+    carriers = [c for c in (e.carrier(ctx, p) for e, p in members) if c is not None] \
+        if any(e.forcing for e, _ in members) else []
+    carrier = carriers[0] if len(carriers) == 1 else None
+
+    def ctx_of(e: Effect) -> FitContext:
+        return carrier if (carrier is not None and e.forcing) else ctx
+
+    off, cols = effect.basis(ctx_of(effect), nl)
+    if base_parts is not None:
+        return base_parts[0], base_parts[1], off, cols
+    parts = [b.effect.basis(ctx_of(b.effect), b.nl) for b in base]
+    return _sum([o for o, _ in parts]), _stack([c for _, c in parts], ctx.t_s.size), off, cols
+
+
+def _carries_base(effect: Effect, base: tuple[EffectFit, ...]) -> bool:
+    """True when ``effect`` is structural and a base member is a force it carries (the base moves with it)."""
+    return type(effect).carrier is not Effect.carrier and any(b.effect is not None and b.effect.forcing for b in base)
+
+
 def nominal_solution(ctx: FitContext) -> tuple[LinearSolution, float, float]:
     """The nominal model's (re-)solution, its BIC and held-out RMS."""
     sol = solve_linear(ctx, None, None)
@@ -146,22 +177,24 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     base_off = _sum([b.offset for b in base])
     base_cols = _stack([b.cols for b in base], n)
     base_effects = [(b.effect, b.nl) for b in base if b.effect is not None]
-    # a signal transform on top of a base changes the base's columns with its parameters: project them too
-    moving_base = effect.transforms_signal and bool(base)
+    # a signal transform on top of a base changes the base's columns with its parameters, and so does a
+    # structure that carries the base's force: project them too
+    carried = _carries_base(effect, base)
+    moving_base = bool(base) and (effect.transforms_signal or carried)
+    fixed_base = None if carried else (base_off, base_cols)
     nl = np.zeros(0)
     nl_std = np.zeros(0)
     if effect.nl_names:
         proj = Projector(ctx, None if moving_base else base_cols, ctx.mask)
 
         def fun(p):
-            b_off, b_cols, off, cols = _compose(ctx, effect, p, base_effects, base_off, base_cols,
-                                                *effect.basis(ctx, p))
+            b_off, b_cols, off, cols = _compose(ctx, effect, p, base_effects, *_parts(ctx, effect, p, base, fixed_base))
             if (off is not None and not np.all(np.isfinite(off[ctx.mask]))) or not np.all(np.isfinite(cols[ctx.mask])):
                 return np.full(proj.base_target.size, 10.0 * float(np.sqrt(np.mean(proj.base_target ** 2))) + 1e-12) \
                     * RESIDUAL_SCALE
             if moving_base:
                 return proj.residual(_sum([b_off, off]), _stack([b_cols, cols], n)) * RESIDUAL_SCALE
-            return proj.residual(_sum([base_off, off]), cols) * RESIDUAL_SCALE
+            return proj.residual(_sum([b_off, off]), cols) * RESIDUAL_SCALE
 
         if nl0 is None:
             grid = list(effect.nl_grid(ctx)) + [np.asarray(g, float) for g in extra_grid]
@@ -176,15 +209,15 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
         jtj = res.jac.T @ res.jac
         s2 = 2 * res.cost / max(res.fun.size - len(nl), 1) / RESIDUAL_SCALE ** 2
         nl_std = np.sqrt(np.abs(np.diag(np.linalg.pinv(jtj)))) * np.sqrt(s2)
-    off, cols = effect.basis(ctx, nl)
-    b_off, b_cols, t_off, t_cols = _compose(ctx, effect, nl, base_effects, base_off, base_cols, off, cols)
+    b_off, b_cols, off, cols = _parts(ctx, effect, nl, base, fixed_base)
+    b_off, b_cols, t_off, t_cols = _compose(ctx, effect, nl, base_effects, b_off, b_cols, off, cols)
     all_off = _sum([b_off, t_off])
     all_cols = _stack([b_cols, t_cols], n)
     sol = solve_linear(ctx, all_off, all_cols)
     k_base = sum(b.n_params for b in base)
     k_eff = effect.n_params(ctx)
-    lin = sol.theta[base_cols.shape[2]:]
-    lin_cov = sol.theta_cov[base_cols.shape[2]:, base_cols.shape[2]:]
+    lin = sol.theta[b_cols.shape[2]:]
+    lin_cov = sol.theta_cov[b_cols.shape[2]:, b_cols.shape[2]:]
     lin_std = np.sqrt(np.abs(np.diag(lin_cov))) if lin.size else np.zeros(0)
     physical = effect.physical(nl, lin)
     physical_std = _physical_std(effect, nl, nl_std, lin, lin_cov)
@@ -202,7 +235,7 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
                      held_out_rms_m=held_out_rms(ctx, all_off, all_cols),
                      residual_rms_m=np.sqrt(np.mean(resid ** 2, axis=0)), coefficients=coefficients_after(ctx, sol),
                      prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect,
-                     base_lin=sol.theta[:base_cols.shape[2]])
+                     base_lin=sol.theta[:b_cols.shape[2]])
 
 
 def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
@@ -224,13 +257,8 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
 
     def fun(x):
         c2 = with_coefficients(ctx, x[:8] * COEFFICIENT_SCALE)
-        offs, cols = [], []
-        for b in base:
-            o, c = b.effect.basis(c2, b.nl)
-            offs.append(o)
-            cols.append(c)
-        b_off, b_cols, o, c = _compose(c2, effect, x[8:], [(b.effect, b.nl) for b in base], _sum(offs),
-                                       _stack(cols, n), *effect.basis(c2, x[8:]))
+        b_off, b_cols, o, c = _compose(c2, effect, x[8:], [(b.effect, b.nl) for b in base],
+                                       *_parts(c2, effect, x[8:], base))
         off = _sum([b_off, o])
         x_cols = _stack([b_cols, c], n)
         target = c2.y_m - c2.y_nom_m - (0.0 if off is None else off)
@@ -449,15 +477,23 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         # refit jointly with the coefficients: the best pairs, and every pair on the top single whose second
         # effect the first pass cannot judge (ALWAYS_REFINED_PAIRS)
         to_refine = set(range(min(PAIR_REFINE, len(pairs))))
-        to_refine |= {i for i, p in enumerate(pairs) if p.base == (top.name,) and p.name in ALWAYS_REFINED_PAIRS}
+        # and every structural effect on a force it carries (its first pass linearizes about the coefficients
+        # the force's single fit dragged to absorb the structure's own response)
+        to_refine |= {i for i, p in enumerate(pairs) if p.name in ALWAYS_REFINED_PAIRS and (
+            p.base == (top.name,) or _carries_base(by_name[p.name], tuple(f for f in singles if f.name == p.base[0])))}
         for i in sorted(to_refine):
             p = pairs[i]
             a = next(f for f in singles if f.name == p.base[0])
             actx = a.ctx or ctx
-            from_prior = (actx.prior_coefficients,) if p.name in PRIOR_STRUCTURAL_STARTS else ()
             nl_starts = tuple(by_name[p.name].refine_starts(actx))
-            pairs[i] = refine(actx, by_name[p.name], p, (a,), reference_bic=top.bic, extra_starts=from_prior,
-                              nl_starts=nl_starts, max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
+            # a pedestal or hardening starts from the prior r0 too, as its single does: its partner's single fit
+            # may have dragged the coefficients into a basin where it is invisible (the bending mode's 15 starts
+            # are left out for time, as in ALWAYS_REFINED_PAIRS)
+            structural = p.name in PRIOR_STRUCTURAL_STARTS and p.name in ALWAYS_REFINED_PAIRS
+            pairs[i] = refine(actx, by_name[p.name], p, (a,), reference_bic=top.bic,
+                              extra_starts=(actx.prior_coefficients,) if structural else (), nl_starts=nl_starts,
+                              start_pairs=tuple((actx.prior_coefficients, s) for s in nl_starts) if structural else (),
+                              max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
         pairs.sort(key=lambda f: f.bic)
         # the selected pair: the smallest BIC among those that beat the top single by the threshold and
         # predict the held-out span no worse
