@@ -89,6 +89,8 @@ class EffectFit:
     coefficients: np.ndarray          # (8,) SI after the joint correction
     prediction_m: np.ndarray          # (N, 4)
     base_lin: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))  # base effects' gains, refitted
+    base_lin_cov: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
+    lin_cov: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
     offset: np.ndarray | None = field(repr=False, default=None)
     cols: np.ndarray | None = field(repr=False, default=None)
     ctx: FitContext | None = field(repr=False, default=None)
@@ -235,7 +237,8 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
                      held_out_rms_m=held_out_rms(ctx, all_off, all_cols),
                      residual_rms_m=np.sqrt(np.mean(resid ** 2, axis=0)), coefficients=coefficients_after(ctx, sol),
                      prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect,
-                     base_lin=sol.theta[:b_cols.shape[2]])
+                     base_lin=sol.theta[:b_cols.shape[2]],
+                     base_lin_cov=sol.theta_cov[:b_cols.shape[2], :b_cols.shape[2]], lin_cov=lin_cov)
 
 
 def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
@@ -358,9 +361,30 @@ def _physical_std(effect: Effect, nl, nl_std, lin, lin_cov, draws: int = 200) ->
     return {k: float(np.nanstd([s.get(k, np.nan) for s in samples])) for k in keys}
 
 
+def _joint_parameters(single: EffectFit, pair: EffectFit, effect: Effect) -> EffectFit:
+    """``single`` (its evidence and prediction kept) with its parameters as estimated jointly in ``pair``.
+
+    The pair's own effect has its fitted parameters; its base kept the single's nonlinear
+    parameters and had its gains (linear parameters) refitted with the partner.
+    """
+    from dataclasses import replace
+
+    if single.name == pair.name:
+        nl, nl_std, lin, lin_cov = pair.nl, pair.nl_std, pair.lin, pair.lin_cov
+    else:
+        nl, nl_std, lin, lin_cov = single.nl, single.nl_std, pair.base_lin, pair.base_lin_cov
+    lin_std = np.sqrt(np.abs(np.diag(lin_cov))) if lin.size else np.zeros(0)
+    return replace(single, nl=nl, nl_std=nl_std, lin=lin, lin_std=lin_std, physical=effect.physical(nl, lin),
+                   physical_std=_physical_std(effect, nl, nl_std, lin, lin_cov))
+
+
 @dataclass
 class Ranking:
-    """Nominal reference, every single-effect fit (best first) and the forward-selected pair."""
+    """Nominal reference, every single-effect fit (best first) and the forward-selected pair.
+
+    When a pair is selected, ``best`` is the winner's single fit (its evidence and prediction) with
+    its parameters from the joint pair fit, and ``second`` is the pair fit named after the other member.
+    """
 
     nominal_bic: float
     nominal_held_out_rms_m: float
@@ -505,14 +529,11 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             first, other = (a_name, b_name) if rank[a_name] <= rank[b_name] else (b_name, a_name)
             from dataclasses import replace
 
-            best = next(f for f in singles if f.name == first)
-            second = replace(cand, name=other, base=(first,), delta_bic=best.bic - cand.bic)
-            if other != cand.name:  # the pair's base is reported second: its parameters from the joint fit
-                a = next(f for f in singles if f.name == other)
-                second = replace(second, nl=a.nl, nl_std=a.nl_std, lin=cand.base_lin,
-                                 lin_std=np.full(cand.base_lin.size, np.nan),
-                                 physical=by_name[other].physical(a.nl, cand.base_lin),
-                                 physical_std={k: float("nan") for k in a.physical}, n_params=a.n_params,
-                                 effect=by_name[other])
+            joint = {n: _joint_parameters(next(f for f in singles if f.name == n), cand, by_name[n])
+                     for n in (first, other)}
+            best, o = joint[first], joint[other]
+            second = replace(cand, name=other, base=(first,), delta_bic=best.bic - cand.bic, nl=o.nl,
+                             nl_std=o.nl_std, lin=o.lin, lin_std=o.lin_std, physical=o.physical,
+                             physical_std=o.physical_std, n_params=o.n_params, effect=o.effect)
     return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=singles,
                    best=best, second=second, pairs=pairs)

@@ -66,6 +66,12 @@ def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
     skew = [rk.second.physical.get(f"skew_{c}_s", math.nan) for c in ("yp1", "xp2", "yp2")] \
         if rk.second.name == "timing_skew" else [rk.best.physical[f"skew_{c}_s"] for c in ("yp1", "xp2", "yp2")]
     assert np.allclose(skew, effects.skew_s, atol=15e-6)
+    # both members' parameters come from the joint pair fit: the 2X forces seen through the skewed probes
+    mis = rk.best if rk.best.name == "misalignment" else rk.second
+    for axis, (c, s) in (("x", effects.misalignment_n[:2]), ("y", effects.misalignment_n[2:])):
+        value, std = mis.physical[f"force_2x_{axis}_amplitude_n"], mis.physical_std[f"force_2x_{axis}_amplitude_n"]
+        assert abs(value - math.hypot(c, s)) < max(3 * std, 0.05 * math.hypot(c, s)), (axis, value, std)
+        assert 0 < std < 0.1 * math.hypot(c, s)
 
 
 def test_soft_pedestal_that_drags_the_nominal_fit_off_is_found_with_its_frequency():
