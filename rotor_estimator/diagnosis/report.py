@@ -140,10 +140,12 @@ def markdown(d: Diagnosis, summary: dict) -> str:
     lines.append(f"Nominal held-out RMS {_fmt_um(summary['decision_rule']['nominal_held_out_rms_m'])} um; an effect "
                  f"counts when delta BIC >= {summary['decision_rule']['min_delta_bic']} and it predicts the held-out "
                  "last 40 % of the record better than the nominal model.")
-    for key in ("best_effect_fit", "second_effect_fit"):
+    pair = summary["second_effect"] != "none"
+    for key, partner in (("best_effect_fit", summary["second_effect"]), ("second_effect_fit", summary["best_effect"])):
         fit = summary.get(key)
         if fit:
-            lines += ["", f"Fitted parameters of `{fit['name']}` (value +- std):", ""]
+            jointly = f", estimated jointly with `{partner}`" if pair else ""
+            lines += ["", f"Fitted parameters of `{fit['name']}` (value +- std{jointly}):", ""]
             for k, v in fit["parameters"].items():
                 lines.append(f"- {k}: {v['value']:.6g} +- {v['std']:.2g}")
     lines += ["", "![ranking](ranking.png)", "", "## 3. How far it shrinks", "",
