@@ -510,13 +510,14 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             a = next(f for f in singles if f.name == p.base[0])
             actx = a.ctx or ctx
             nl_starts = tuple(by_name[p.name].refine_starts(actx))
-            # a pedestal or hardening starts from the prior r0 too, as its single does: its partner's single fit
-            # may have dragged the coefficients into a basin where it is invisible (the bending mode's 15 starts
-            # are left out for time, as in ALWAYS_REFINED_PAIRS)
-            structural = p.name in PRIOR_STRUCTURAL_STARTS and p.name in ALWAYS_REFINED_PAIRS
-            pairs[i] = refine(actx, by_name[p.name], p, (a,), reference_bic=top.bic,
-                              extra_starts=(actx.prior_coefficients,) if structural else (), nl_starts=nl_starts,
-                              start_pairs=tuple((actx.prior_coefficients, s) for s in nl_starts) if structural else (),
+            from_prior = (actx.prior_coefficients,) if p.name in PRIOR_STRUCTURAL_STARTS else ()
+            # a pedestal or hardening also starts from the prior r0 at each of its structural starts, as its
+            # single does: its partner's single fit may have dragged the coefficients into a basin where it is
+            # invisible (the bending mode's 15 starts are left out for time, as in ALWAYS_REFINED_PAIRS)
+            pairs_from_prior = tuple((actx.prior_coefficients, s) for s in nl_starts) \
+                if p.name in PRIOR_STRUCTURAL_STARTS and p.name in ALWAYS_REFINED_PAIRS else ()
+            pairs[i] = refine(actx, by_name[p.name], p, (a,), reference_bic=top.bic, extra_starts=from_prior,
+                              nl_starts=nl_starts, start_pairs=pairs_from_prior,
                               max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
         pairs.sort(key=lambda f: f.bic)
         # the selected pair: the smallest BIC among those that beat the top single by the threshold and
