@@ -15,10 +15,10 @@ from ..config import COEFFICIENT_NAMES_WITH_UNITS, EstimatorConfig, RigConfig
 from ..recording import RigRecording
 from .context import FitContext, build_context
 from .effects import LIBRARY, Effect
-from .ranking import SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking, nominal_solution, rank_effects
+from .ranking import HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking, nominal_solution, rank_effects
 from .residuals import CHANNELS, budget, innovation_consistency
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance
 
 
 @dataclass
@@ -58,7 +58,8 @@ class Diagnosis:
                          "held_out_rms_m": f.held_out_rms_m, "residual_rms_m": _total(f.residual_rms_m)}
                         for f in rk.singles],
             "decision_rule": {"min_delta_bic": SIGNIFICANCE_DELTA_BIC,
-                              "held_out_must_improve": True,
+                              "held_out_no_worse_than_nominal": True,
+                              "held_out_tolerance": HELD_OUT_TOLERANCE,
                               "nominal_held_out_rms_m": rk.nominal_held_out_rms_m},
             "best_effect": self.best_effect,
             "best_effect_fit": best.summary() if best else None,

@@ -139,7 +139,8 @@ def markdown(d: Diagnosis, summary: dict) -> str:
     lines.append("")
     lines.append(f"Nominal held-out RMS {_fmt_um(summary['decision_rule']['nominal_held_out_rms_m'])} um; an effect "
                  f"counts when delta BIC >= {summary['decision_rule']['min_delta_bic']} and it predicts the held-out "
-                 "last 40 % of the record better than the nominal model.")
+                 "last 40 % of the record no worse than the nominal model (within "
+                 f"{100 * summary['decision_rule']['held_out_tolerance']:.1f} %).")
     pair = summary["second_effect"] != "none"
     for key, partner in (("best_effect_fit", summary["second_effect"]), ("second_effect_fit", summary["best_effect"])):
         fit = summary.get(key)
