@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Blind benchmark of the sim-to-real diagnosis (a script, not a test; ~15 min for 36 cases on 2 cores).
+"""Blind benchmark of the sim-to-real diagnosis (a script, not a test; about 50 min for 36 cases on 2 cores).
 
     .venv/bin/python benchmarks/bench_diagnosis.py --cases 36 --seed 2024 [--out DIR] [--jobs 2] [--no-ross] [--json]
 
