@@ -288,6 +288,7 @@ class EstimatorPipeline:
         self._waiting: list[AlignedBlock] = []         # aligned samples waiting for the shaft reference
         self._newest_pulse_ns: int | None = None
         self._probe_ns_at_pulse: int | None = None     # newest probe stamp when the last pulse arrived
+        self._pulse_arrival_ns: int | None = None      # when the last pulse was received (live clock)
         self._held: dict[int, list[tuple[np.ndarray, np.ndarray, int | None]]] = {1: [], 2: []}
         self._held_count = {1: 0, 2: 0}
         self._ekf_counts = dict.fromkeys(EKF_REJECTIONS, 0)
@@ -381,9 +382,14 @@ class EstimatorPipeline:
             self._held[p] = keep
             self._held_count[p] = sum(b[0].size for b in keep)
 
-    def on_pulse(self, stamp_ns: int) -> None:
-        """One keyphasor pulse (shaft angle 0) at integer-ns ``stamp_ns``."""
+    def on_pulse(self, stamp_ns: int, arrival_ns: int | None = None) -> None:
+        """One keyphasor pulse (shaft angle 0) at integer-ns ``stamp_ns``.
+
+        ``arrival_ns`` (live): when it was received. While pulses keep arriving, samples are
+        not released by the wall clock without one (see :meth:`process`)."""
         stamp = int(stamp_ns)
+        if arrival_ns is not None:
+            self._pulse_arrival_ns = int(arrival_ns)
         self._probe_ns_at_pulse = self._newest_ns
         self._newest_pulse_ns = stamp if self._newest_pulse_ns is None else max(self._newest_pulse_ns, stamp)
         self.tracker.add_pulse(stamp)
@@ -437,9 +443,12 @@ class EstimatorPipeline:
     def process(self, now_ns: int | None = None) -> list[Output]:
         """Filter every sample that is ready.
 
-        ``now_ns`` (live only, on the clock of ``arrival_ns``): the input is known to be idle
-        up to now, so samples still waiting for the other plane or the reorder window are
-        decided by the clock as well."""
+        ``now_ns`` (live only, on the clock of ``arrival_ns``): the probe input is known to be
+        idle up to now, so samples still waiting for the other plane or the reorder window are
+        decided by the clock as well. Samples waiting for a keyphasor pulse are decided by the
+        clock only once no pulse has arrived for ``shaft_wait_s`` either: a keyphasor topic
+        delivered behind the probes (a loaded consumer takes one message per topic per
+        executor round, and pulses can outnumber probe blocks) is waited for, not rejected."""
         outputs = self._drain_ready()
         if now_ns is not None:
             self._release_planes(everything=True)
@@ -454,7 +463,8 @@ class EstimatorPipeline:
             since = self._probe_ns_at_pulse
             stopped = since is None or self._newest_ns - since > wait_ns
             ripe_ns = max(ripe_ns, self._newest_ns - (wait_ns if stopped else 10 * wait_ns))
-        if now_ns is not None and self._min_offset_ns is not None:
+        pulses_quiet = self._pulse_arrival_ns is None or now_ns is None or now_ns - self._pulse_arrival_ns > wait_ns
+        if now_ns is not None and self._min_offset_ns is not None and pulses_quiet:
             ripe_ns = max(ripe_ns, int(now_ns) - self._min_offset_ns - wait_ns)
         outputs += self._run(self._take_waiting(ripe_ns))
         return outputs
@@ -474,7 +484,11 @@ class EstimatorPipeline:
         return AlignedBlock(w.stamps_ns[:k], w.probes_m[:k], w.impact_force_n[:k])
 
     def flush(self) -> list[Output]:
-        """End of data: filter everything pending and emit a final output."""
+        """End of data: filter everything pending and emit a final output.
+
+        Nothing is then behind: the falling-behind state clears (its events stay counted)."""
+        self._falling_behind = False
+        self._lag_s = 0.0
         outputs = self._drain_ready()
         self._release_planes(everything=True)
         block = self.aligner.flush()
@@ -633,7 +647,7 @@ class EstimatorPipeline:
         falling_behind = self._falling_behind or pulses_behind
         if falling_behind:
             level = max(level, LEVEL_WARN)
-            problems.append(f"falling behind: input handled {self._lag_s:.3f} s late, samples will be lost")
+            problems.append(f"falling behind: input handled {self._lag_s:.3f} s late; input queues may overflow")
         if delta["no_shaft_reference"] > 0 and delta["processed"] == 0:
             level = max(level, LEVEL_WARN)
             problems.append("no shaft reference (keyphasor pulses missing or shaft stopped)")

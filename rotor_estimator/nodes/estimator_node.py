@@ -81,7 +81,8 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("shaft_wait_s", 0.5, "Samples wait at most this long (sample time) for the next keyphasor pulse, s",
               0.0, 60.0),
     ParamSpec("idle_release_s", 0.25, "No probe message for this long (wall time): release the samples still "
-              "waiting in the reorder window, s", 0.001, 60.0),
+              "waiting in the reorder window; no input at all for this long: decide everything pending, s",
+              0.001, 60.0),
     ParamSpec("convergence_relative_std", 0.05, "Converged when std/|estimate| of kxx kyy cxx cyy is below "
               "this (and the NIS is consistent)", 1e-6, 10.0),
     ParamSpec("falling_behind_s", 0.5, "Input handled later than this (beyond the best seen) is reported as "
@@ -176,6 +177,7 @@ class EstimatorNode(Node):
         self._tick_period_ns = int(1e9 / float(values["idle_process_rate_hz"]))
         self._idle_ns = int(float(values["idle_release_s"]) * 1e9)
         self._last_probe_ns = 0
+        self._last_input_ns = 0
         self._idle_flushed = False
         self._last_tick_ns = self._now_ns()
         self.create_timer(1.0 / float(values["idle_process_rate_hz"]), self._on_tick)
@@ -232,22 +234,26 @@ class EstimatorNode(Node):
         probe = stream in ("probe1", "probe2")
         now = self._now_ns()
         with self.lock:
-            feed_message(self.pipeline, stream, msg, now if probe else None)
+            feed_message(self.pipeline, stream, msg, now)
             outputs = self.pipeline.process() if probe else []
+        self._last_input_ns = now
         if probe:
             self._last_probe_ns = now
             self._idle_flushed = False
             self._publish(outputs)
 
     def _on_tick(self) -> None:
-        """Release samples by wall clock only when the input is idle and this tick is on time:
-        after a stall, messages still queued in the subscriptions must not be declared late."""
+        """Release samples by wall clock only when the probe input is idle and this tick is on
+        time: after a stall, messages still queued in the subscriptions must not be declared
+        late. Decide everything (final estimate) only when no input at all arrives: keyphasor
+        pulses still being delivered will give the last samples their shaft reference."""
         now = self._now_ns()
         on_time = now - self._last_tick_ns < 2 * self._tick_period_ns
         self._last_tick_ns = now
         idle = bool(self._last_probe_ns) and now - self._last_probe_ns > self._idle_ns and on_time
+        all_idle = idle and now - self._last_input_ns > self._idle_ns
         with self.lock:
-            if idle and not self._idle_flushed:
+            if all_idle and not self._idle_flushed:
                 outputs = self.pipeline.flush()      # input stopped: decide everything, final estimate
                 self._idle_flushed = True
             else:

@@ -28,7 +28,7 @@ def feed_message(pipeline: EstimatorPipeline, stream: str, msg: Any, arrival_ns:
             stamps, xy = ma.probe_block_from_msg(msg)
             pipeline.on_probe_block(1 if stream == "probe1" else 2, stamps, xy, arrival_ns)
         elif stream == "keyphasor":
-            pipeline.on_pulse(ma.pulse_stamp_from_msg(msg))
+            pipeline.on_pulse(ma.pulse_stamp_from_msg(msg), arrival_ns)
         elif stream == "impact":
             stamps, f = ma.impact_block_from_msg(msg)
             pipeline.on_impact_block(stamps, f)

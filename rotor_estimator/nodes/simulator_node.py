@@ -203,6 +203,12 @@ class SimulatorNode(Node):
         now = self.get_clock().now().nanoseconds
         self._start_ns = now + int(float(v["start_delay_s"]) * 1e9)
         self._shift0 = (self._start_ns - first_stamp) if v["restamp"] else 0
+        # every publisher exists from the start, so discovery has start_delay_s to match it
+        # with the subscribers before its first message (a late-created one loses its first)
+        for stream in ("probe1", "probe2", "keyphasor", "impact"):
+            first = next((e for e in self.events if e.stream == stream), None)
+            if first is not None:
+                self._publisher(stream, first.make(self._shift0))
         self._due = [e.due_ns for e in self.events]
         self._next = 0
         self._cycle = 0

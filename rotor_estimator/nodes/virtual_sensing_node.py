@@ -171,6 +171,7 @@ class VirtualSensingNode(Node):
         except (InputError, AttributeError, TypeError, ValueError):
             self.undecodable["keyphasor"] += 1
             return
+        self._last_input_ns = self._now_ns()          # pulses still arriving: the input is not idle
         with self.lock:
             self.pipeline.on_pulse(stamp)
 

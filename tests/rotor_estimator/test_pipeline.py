@@ -204,6 +204,46 @@ def test_no_pulses_or_zero_speed_rejects_samples_as_no_shaft_reference(seed_rig_
     assert pipe.accounting().ekf_rejected["no_shaft_reference"] == len(rec)
 
 
+def test_keyphasor_delivered_behind_the_probes_is_waited_for_not_rejected(seed_rig_file, impact_sim):
+    """Live (wall clock given): pulses reach the pipeline 30 ms (3x shaft_wait_s) behind the
+    probes and keep arriving after the probes stop (a loaded node takes one message per topic
+    per executor round). While pulses arrive, the idle wall-clock release waits for them:
+    every sample gets its shaft reference, as when the pulses come first."""
+    rec = impact_sim.recording
+    lag_ns, block = 30_000_000, 100
+    pipe = make(seed_rig_file, shaft_wait_s=0.01)
+    pulses = [int(p) for p in rec.pulse_stamps_ns]
+    now = 0
+    for i in range(0, len(rec), block):
+        sl = slice(i, min(i + block, len(rec)))
+        now = int(rec.stamps_ns[sl][-1])                  # zero transport delay for the probes
+        while pulses and pulses[0] <= now - lag_ns:
+            pipe.on_pulse(pulses.pop(0), now)
+        for p in (1, 2):
+            pipe.on_probe_block(p, rec.stamps_ns[sl], rec.probes_m[sl, 2 * p - 2:2 * p], now)
+        pipe.on_impact_block(rec.stamps_ns[sl], rec.impact_force_n[sl])
+        pipe.process()
+    assert len(pulses) >= 5                               # the test needs pulses after the probes
+    while pulses:                                         # probes idle, pulses one per ms of wall time
+        now += 1_000_000
+        pipe.on_pulse(pulses.pop(0), now)
+        pipe.process(now)
+    pipe.flush()
+    acc = pipe.accounting()
+    in_time = make(seed_rig_file, shaft_wait_s=0.01)
+    feed(in_time, rec)                                    # pulses delivered ahead of the probes
+    assert acc.ekf_rejected["no_shaft_reference"] == 0 and acc.balanced()
+    assert acc.processed == in_time.accounting().processed
+    # once pulses stop arriving, the wall clock decides the samples still waiting (as before)
+    pipe = make(seed_rig_file, shaft_wait_s=0.01)
+    for p in (1, 2):
+        pipe.on_probe_block(p, rec.stamps_ns, rec.probes_m[:, 2 * p - 2:2 * p], int(rec.stamps_ns[-1]))
+    pipe.on_pulse(int(rec.pulse_stamps_ns[0]), int(rec.stamps_ns[-1]))
+    pipe.process(int(rec.stamps_ns[-1]) + 100_000_000)
+    acc = pipe.accounting()                               # all but the aligner's held-back newest sample
+    assert acc.processed + acc.ekf_rejected["no_shaft_reference"] == len(rec) - 1
+
+
 def test_wrong_message_type_or_layout_is_counted_never_raised(seed_rig_file):
     pipe = make(seed_rig_file)
     fac = ma.TypestoreFactory()
