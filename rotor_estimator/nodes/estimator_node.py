@@ -25,7 +25,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, qos_profile_sensor_data
 
 import msg_adapters as ma
 
-from .params import ParamSpec, descriptor
+from .params import ParamSpec, descriptor, parameters_yaml
 from .spin import run_node
 from ..alignment import AlignmentConfig
 from ..config import BearingCoefficients, RigFile, load_rig_file
@@ -67,18 +67,20 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("motion_process_noise_accel_m_s2", -1.0, "Override the motion process noise density, "
               "m/s^2/sqrt(Hz); negative: rig file", -1.0, 1e6),
     ParamSpec("initial_coefficients", _ARRAY, "Override r0: 8 values kxx kxy kyx kyy (N/m) cxx cxy cyx cyy "
-              "(N*s/m); unset: rig file"),
+              "(N*s/m); unset: rig file", example=(3.0e5, 3.0e5, -3.0e5, 3.0e5, 900.0, 0.0, 0.0, 900.0)),
     ParamSpec("initial_coefficient_std", _ARRAY, "Override sqrt(diag P0) of the 8 coefficients (SI); unset: "
-              "rig file"),
+              "rig file", example=(3.16e5, 3.16e5, 3.16e5, 3.16e5, 1000.0, 1000.0, 1000.0, 1000.0)),
     ParamSpec("coefficient_random_walk", _ARRAY, "Override Q_r as 8 std rates, SI/sqrt(s) (> 0 lets the estimate "
-              "track slow changes); unset: rig file"),
+              "track slow changes); unset: rig file",
+              example=(1.0e3, 1.0e3, 1.0e3, 1.0e3, 1.0, 1.0, 1.0, 1.0)),
     ParamSpec("tach_window_pulses", 8, "Keyphasor pulses in the shaft-angle fit", 2, 1000),
     ParamSpec("tach_fit_order", 2, "Shaft-angle fit order: 1 constant speed, 2 constant acceleration", 1, 2),
     ParamSpec("tach_stop_timeout_s", 1.0, "No pulse for this long means the shaft stopped, s", 0.001, 3600.0),
     ParamSpec("tach_min_speed_rad_s", 10.0, "Lowest valid shaft speed, rad/s", 0.0, 1e6),
     ParamSpec("tach_fit_history", 1024, "Shaft-angle fits kept (pulses), so samples delivered after many newer "
               "pulses still find theirs", 16, 100_000),
-    ParamSpec("shaft_wait_s", 0.5, "Samples wait at most this long (sample time) for the next keyphasor pulse, s",
+    ParamSpec("shaft_wait_s", 0.5, "Samples wait at most this long (sample time) for the next keyphasor pulse; "
+              "while pulses still arrive (keyphasor delivered behind the probes), samples wait for them, s",
               0.0, 60.0),
     ParamSpec("idle_release_s", 0.25, "No probe message for this long (wall time): release the samples still "
               "waiting in the reorder window; no input at all for this long: decide everything pending, s",
@@ -93,6 +95,19 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               1e-3, 3600.0),
     ParamSpec("hardware_id", "", "DiagnosticStatus hardware_id; empty: the rig name"),
 )
+
+PARAMETERS_FILE_HEADER = """Parameters of estimator_node (rotor_estimator), robot_localization style: every
+parameter with its unit and default. Load with:
+  ros2 run rotor_estimator estimator_node --ros-args --params-file config/estimator.yaml
+or through launch/estimator.launch.py. All parameters are read once at start (read-only).
+Generated from estimator_node.PARAMETERS (tests check it): edit those, then run
+  python -c "from rotor_estimator.nodes.estimator_node import parameters_file; print(parameters_file(), end='')" \\
+    > config/estimator.yaml"""
+
+
+def parameters_file() -> str:
+    """The text of ``config/estimator.yaml``: every parameter with its description, range and default."""
+    return parameters_yaml("rotor_estimator", PARAMETERS, PARAMETERS_FILE_HEADER)
 
 
 def pipeline_from_parameters(values: Mapping[str, Any]) -> tuple[EstimatorPipeline, RigFile, ma.InputTopics]:
