@@ -54,7 +54,7 @@ setup(
         ],
         # Optional independent cross-check of the finite-element rotor (ROSS 2.3.0 needs plotly<6).
         "ross": ["ross-rotordynamics==2.3.0", "plotly<6"],
-        "test": ["pytest>=7"],
+        "test": ["pytest>=7", "pytest-xdist>=3.2"],  # -n 2: the diagnosis tests take minutes each
     },
     zip_safe=True,
     maintainer="rotor_estimator developers",
