@@ -91,14 +91,15 @@ def test_live_estimates_converge_diagnostics_healthy_and_reset_works(graph):
     # 1.5 s of simulated data at 1.5x real time, then the input stops
     assert wait_for(lambda: sim.done, 20.0), "simulator did not finish"
     samples = sim.samples_per_plane
-    # every sample is processed or rejected with a reason; on a loaded machine a few may be
-    # rejected (e.g. the keyphasor topic delivered late), but most must be filtered
+    # every sample is processed or rejected with a reason; a keyphasor topic delivered behind
+    # the probes (a loaded executor) is waited for, so nearly all are filtered (30000/30000 in
+    # 3 runs with four busy processes on 2 cores; 35-59 % before pulses were waited for)
     assert wait_for(lambda: accounting(est).pending == {1: 0, 2: 0} and est.outputs_published > 0, 10.0)
     acc = accounting(est)
     reasons = {k: v for k, v in acc.rejected_by_reason().items() if v}
     assert acc.balanced()
     assert acc.received[1] == samples and acc.received[2] == samples, f"messages were lost: {reasons}"
-    assert acc.processed > 0.8 * samples, reasons
+    assert acc.processed > 0.95 * samples, reasons
     assert wait_for(lambda: len(coefs) >= 20, 5.0)
     stamps = [c.stamp_ns for c in coefs]
     assert stamps == sorted(stamps)
