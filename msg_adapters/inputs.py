@@ -77,7 +77,8 @@ def pulse_stamp_from_msg(msg: Any) -> int:
     return stamp_ns if stamp_ns != 0 else header_stamp_ns(msg)
 
 
-def _check_block(stamps_ns: np.ndarray, values: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+def check_block(stamps_ns: np.ndarray, values: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a block of (N,) integer ns stamps and (N, 2) values; return (uint32 offsets from the first stamp, float64 values)."""
     stamps_ns = np.asarray(stamps_ns)
     values = np.asarray(values, dtype=np.float64)
     if stamps_ns.ndim != 1 or stamps_ns.size == 0 or not np.issubdtype(stamps_ns.dtype, np.integer):
@@ -95,7 +96,7 @@ def _check_block(stamps_ns: np.ndarray, values: np.ndarray, what: str) -> tuple[
 def probe_block_to_msg(factory: MessageFactory, stamps_ns: np.ndarray, xy_m: np.ndarray,
                        *, frame_id: str) -> Any:
     """PointCloud2 block of probe samples (fields ``x_m``, ``y_m``, ``t_offset_ns``)."""
-    offsets, xy = _check_block(stamps_ns, xy_m, "probe block")
+    offsets, xy = check_block(stamps_ns, xy_m, "probe block")
     return cloud_from_columns(factory, int(stamps_ns[0]), frame_id, [
         ("x_m", FLOAT64, xy[:, 0]), ("y_m", FLOAT64, xy[:, 1]), ("t_offset_ns", UINT32, offsets)])
 
@@ -103,7 +104,7 @@ def probe_block_to_msg(factory: MessageFactory, stamps_ns: np.ndarray, xy_m: np.
 def impact_block_to_msg(factory: MessageFactory, stamps_ns: np.ndarray, f_n: np.ndarray,
                         *, frame_id: str = "impact") -> Any:
     """PointCloud2 block of impact force samples (fields ``fx_n``, ``fy_n``, ``t_offset_ns``)."""
-    offsets, f = _check_block(stamps_ns, f_n, "impact block")
+    offsets, f = check_block(stamps_ns, f_n, "impact block")
     return cloud_from_columns(factory, int(stamps_ns[0]), frame_id, [
         ("fx_n", FLOAT64, f[:, 0]), ("fy_n", FLOAT64, f[:, 1]), ("t_offset_ns", UINT32, offsets)])
 

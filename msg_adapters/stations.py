@@ -45,7 +45,7 @@ from rotor_estimator.errors import InputError
 from ._common import expect_type, header_stamp_ns
 from .cloud import FLOAT64, POINTCLOUD2, UINT32, cloud_columns, cloud_from_columns
 from .factory import MessageFactory
-from .inputs import MAX_BLOCK_SPAN_NS, PROBE_FIELDS
+from .inputs import PROBE_FIELDS, check_block
 from .outputs import _joint_state, _joint_values
 
 ACCEL_FIELDS: dict[str, int] = {"ax_m_s2": FLOAT64, "ay_m_s2": FLOAT64, "t_offset_ns": UINT32}
@@ -90,20 +90,10 @@ def sensor_block_to_msg(factory: MessageFactory, kind: str, stamps_ns: np.ndarra
     """PointCloud2 block of one sensor: ``values`` (N, 2) [x, y] in m (probe) or m/s^2
     (accelerometer), ``stamps_ns`` (N,) integer ns, non-decreasing from the first."""
     fields = _fields(kind)
-    stamps = np.asarray(stamps_ns)
-    vals = np.asarray(values, dtype=np.float64)
-    if stamps.ndim != 1 or stamps.size == 0 or not np.issubdtype(stamps.dtype, np.integer):
-        raise InputError(f"{kind} block: stamps_ns must be a non-empty 1-D integer array, got "
-                         f"{stamps.dtype} {stamps.shape}")
-    if vals.shape != (stamps.size, 2):
-        raise InputError(f"{kind} block: values must have shape ({stamps.size}, 2), got {vals.shape}")
-    offsets = stamps.astype(np.int64) - np.int64(stamps[0])
-    if offsets.min() < 0 or offsets.max() > MAX_BLOCK_SPAN_NS:
-        raise InputError(f"{kind} block: stamps must not precede the first one and must span at most "
-                         f"{MAX_BLOCK_SPAN_NS} ns (t_offset_ns is UINT32); use smaller blocks")
+    offsets, vals = check_block(stamps_ns, values, f"{kind} block")
     a, b = (n for n in fields if n != "t_offset_ns")
-    return cloud_from_columns(factory, int(stamps[0]), frame_id, [
-        (a, FLOAT64, vals[:, 0]), (b, FLOAT64, vals[:, 1]), ("t_offset_ns", UINT32, offsets.astype(np.uint32))])
+    return cloud_from_columns(factory, int(np.asarray(stamps_ns)[0]), frame_id, [
+        (a, FLOAT64, vals[:, 0]), (b, FLOAT64, vals[:, 1]), ("t_offset_ns", UINT32, offsets)])
 
 
 def sensor_block_from_msg(msg: Any, kind: str) -> tuple[np.ndarray, np.ndarray]:

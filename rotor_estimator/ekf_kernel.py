@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ._forcing import add_imbalance_force
+from ._forcing import add_imbalance_force, rigid_state_derivative
 from ._jit import njit
 
 STATUS_UPDATED = 0
@@ -62,17 +62,7 @@ def _stage(q, r, t, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wi
     res[1] = f1 - (kyx * z0 + kyy * z1 + cyx * v0 + cyy * v1)
     res[2] = f2 - (kxx * z2 + kxy * z3 + cxx * v2 + cxy * v3)
     res[3] = f3 - (kyx * z2 + kyy * z3 + cyx * v2 + cyy * v3)
-    for rr in range(4):
-        g = 0.0
-        for c in range(4):
-            g += gyro[rr, c] * q[c]
-        res[rr] -= omega * g
-    for rr in range(4):
-        acc = 0.0
-        for c in range(4):
-            acc += minv[rr, c] * res[c]
-        k_out[rr] = acc
-        k_out[4 + rr] = q[rr]
+    rigid_state_derivative(res, q, omega, gyro, minv, k_out)
     # Jacobian of the bearing+gyro force w.r.t. q: B = -(C + Omega G) for v, -S for z
     bq = np.zeros((4, 8))
     bq[0, 0] = -cxx

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._forcing import add_imbalance_force
+from ._forcing import add_imbalance_force, average_impact_force
 from ._jit import njit
 from .config import BearingCoefficients, RigConfig
 from .errors import ConfigError
@@ -169,13 +169,7 @@ def _integrate(n_samples, dt, substeps, minv, gyro, kmat, cmat, moments, phases,
         for s in range(substeps):
             t = k * dt + s * h
             # impact force held over the substep as its exact average
-            fimp[0] = 0.0
-            fimp[1] = 0.0
-            for j in range(imp_start.shape[0]):
-                overlap = min(t + h, imp_end[j]) - max(t, imp_start[j])
-                if overlap > 0:
-                    fimp[0] += imp_fx[j] * overlap / h
-                    fimp[1] += imp_fy[j] * overlap / h
+            average_impact_force(t, h, imp_start, imp_end, imp_fx, imp_fy, fimp)
             _rhs(t, q, minv, gyro, kmat, cmat, moments, phases, wimb, wimp, omega0, alpha, fimp, k1)
             for i in range(8):
                 tmp[i] = q[i] + 0.5 * h * k1[i]

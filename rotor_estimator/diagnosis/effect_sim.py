@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._forcing import average_impact_force, rigid_state_derivative
 from .._jit import njit
 from ..config import RigConfig
 from ..errors import ConfigError
@@ -114,18 +115,10 @@ def _rhs(t, q, minv, gyro, kmat, cmat, k3, planes, w0, alpha, f2x, preload, fimp
         for c in range(4):
             acc += kmat[r, c] * d[c] + cmat[r, c] * dv[c]
         fb[r] = acc
-    res = np.zeros(4)
+    res = np.empty(4)
     for r in range(4):
-        acc = force[r] - fb[r]
-        for c in range(4):
-            acc -= w * gyro[r, c] * q[c]
-        res[r] = acc
-    for r in range(4):
-        acc = 0.0
-        for c in range(4):
-            acc += minv[r, c] * res[c]
-        out[r] = acc
-        out[4 + r] = q[r]
+        res[r] = force[r] - fb[r]
+    rigid_state_derivative(res, q, w, gyro, minv, out)
     if ped[0] > 0:
         for r in range(4):
             out[8 + r] = (fb[r] - ped[1] * q[12 + r] - ped[2] * q[8 + r]) / ped[0]
@@ -166,13 +159,7 @@ def _integrate(n, dt, substeps, minv, gyro, kmat, cmat, k3, planes, w0, alpha, f
         derivs[k, :] = k1
         for s in range(substeps):
             t = t0 + s * h
-            fimp[0] = 0.0
-            fimp[1] = 0.0
-            for j in range(imp_start.shape[0]):
-                ov = min(t + h, imp_end[j]) - max(t, imp_start[j])
-                if ov > 0:
-                    fimp[0] += imp_fx[j] * ov / h
-                    fimp[1] += imp_fy[j] * ov / h
+            average_impact_force(t, h, imp_start, imp_end, imp_fx, imp_fy, fimp)
             _rhs(t, q, minv, gyro, kmat, cmat, k3, planes, w0, alpha, f2x, preload, fimp, wimp, ped, bend, phi_imp, k1)
             for i in range(20):
                 tmp[i] = q[i] + 0.5 * h * k1[i]

@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from .._forcing import rigid_state_derivative
 from .._jit import njit
 
 
@@ -77,17 +78,7 @@ def _stage(q, dq, ncol, theta, bvec, t, angle0, omega0, alpha, fgen, dmap, power
         vy = q[2 * b + 1]
         res[2 * b] -= ph[o] * x + ph[o + 1] * y + ph[o + 4] * vx + ph[o + 5] * vy
         res[2 * b + 1] -= ph[o + 2] * x + ph[o + 3] * y + ph[o + 6] * vx + ph[o + 7] * vy
-    for r in range(4):
-        g = 0.0
-        for m in range(4):
-            g += gyro[r, m] * q[m]
-        res[r] -= om * g
-    for r in range(4):
-        acc = 0.0
-        for m in range(4):
-            acc += minv[r, m] * res[m]
-        k_out[r] = acc
-        k_out[4 + r] = q[r]
+    rigid_state_derivative(res, q, om, gyro, minv, k_out)
     if ncol == 0:
         return
     dres = np.empty(4)
