@@ -26,6 +26,7 @@ def _load(path: Path):
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
+    import sys
     import warnings
 
     from ..config import load_rig_file
@@ -37,6 +38,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     recording = _load(Path(args.bag))
     d = diagnose(recording, rig_file.rig, rig_file.estimator, passes=args.passes)
     summary = write_report(d, args.report) if args.report else d.summary()
+    for text in summary["data"]["warnings"]:
+        print(f"rotor-estimator: warning: {text}", file=sys.stderr)
     if args.json:
         print(json.dumps(summary, indent=1))
     else:

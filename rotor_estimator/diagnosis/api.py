@@ -14,12 +14,16 @@ import numpy as np
 from ..config import COEFFICIENT_NAMES_WITH_UNITS, EstimatorConfig, RigConfig
 from ..linear_filters import single_threaded_blas
 from ..recording import RigRecording
-from .context import FitContext, build_context
+from .context import WARMUP_S, FitContext, build_context
 from .effects import LIBRARY, Effect
 from .ranking import HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking, nominal_solution, rank_effects
 from .residuals import CHANNELS, budget, innovation_consistency
 
-SCHEMA_VERSION = 2  # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance
+SCHEMA_VERSION = 3  # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance; 3: data
+
+NO_IMPACT_WARNING = ("no impact in the record: the bearing coefficients are then fitted to the synchronous "
+                     "response alone and absorb most effects (unbalance, keyphasor offset, runout, probe gain, "
+                     "pedestal), so a 'none' verdict is weak evidence; record at least one impact")
 
 
 @dataclass
@@ -32,6 +36,7 @@ class Diagnosis:
     innovations: dict
     nominal_prediction_m: np.ndarray
     table: list[dict]
+    data: dict
 
     @property
     def best_effect(self) -> str:
@@ -53,6 +58,7 @@ class Diagnosis:
                                 next(f.name for f in rk.singles if f.name != best.name))]
         return {
             "schema_version": SCHEMA_VERSION,
+            "data": self.data,
             "where": self.where,
             "innovations": self.innovations,
             "ranking": [{"effect": f.name, "delta_bic": round(f.delta_bic, 2), "n_params": f.n_params,
@@ -78,6 +84,28 @@ class Diagnosis:
             "coefficients_nominal": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, ctx.coefficients))),
             "table": self.table,
         }
+
+
+def data_accounting(recording: RigRecording, ctx: FitContext) -> dict:
+    """Which samples the fits used, why the others were left out, the impacts, and warnings on what
+    the data cannot show (counted rejections, never silent)."""
+    n = len(recording)
+    non_finite = ~np.all(np.isfinite(recording.probes_m), axis=1)
+    outside_tach = ~ctx.shaft.valid
+    hit = np.any(recording.impact_force_n != 0.0, axis=1)
+    impacts = int(hit[0]) + int(np.sum(hit[1:] & ~hit[:-1]))
+    warnings = []
+    if non_finite.any():
+        warnings.append(f"{int(non_finite.sum())} probe sample(s) with a non-finite value were left out")
+    if outside_tach.mean() > 0.1:
+        warnings.append(f"{100 * outside_tach.mean():.0f} % of the samples lie outside the span the keyphasor "
+                        "tracks and were left out")
+    if impacts == 0:
+        warnings.append(NO_IMPACT_WARNING)
+    return {"samples": n, "samples_used": int(ctx.mask.sum()), "non_finite_probe_samples": int(non_finite.sum()),
+            "outside_tachometer_span_samples": int(outside_tach.sum()),
+            "warm_up_samples": int(np.sum(ctx.t_s < ctx.t_s[0] + WARMUP_S)), "impacts": impacts,
+            "warnings": warnings}
 
 
 def _rms(e: np.ndarray, mask: np.ndarray) -> float:
@@ -127,4 +155,4 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     for label, fit in shown:
         table.append(_row(ctx, label, fit.prediction_m, fit.held_out_rms_m, fit.coefficients))
     return Diagnosis(ctx=ctx, ranking=rk, where=where, innovations=innov, nominal_prediction_m=sol0.prediction_m,
-                     table=table)
+                     table=table, data=data_accounting(recording, ctx))

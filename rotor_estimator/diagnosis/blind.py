@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import RigFile, load_rig_file
+from ..errors import InputError
 from ..recording import RigRecording
 from ..simulator import Impact
 from .effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
@@ -416,10 +417,27 @@ def save_recording(path: Path, recording: RigRecording) -> None:
                         pulse_stamps_ns=recording.pulse_stamps_ns, impact_force_n=recording.impact_force_n)
 
 
+RECORDING_KEYS = ("stamps_ns", "probes_m", "pulse_stamps_ns", "impact_force_n")
+
+
 def load_recording(path: Path) -> RigRecording:
-    with np.load(path) as z:
-        return RigRecording(z["stamps_ns"], z["probes_m"], z["pulse_stamps_ns"], z["impact_force_n"],
-                            meta={"source": str(path)})
+    """A recording written by :func:`save_recording`; a missing, unreadable or incomplete file is an
+    :class:`InputError` naming the file (object arrays are refused, never unpickled)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such recording")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [k for k in RECORDING_KEYS if k not in z.files]
+            if missing:
+                raise InputError(f"{path}: not a recording, missing array(s) {', '.join(missing)} "
+                                 f"(expected {', '.join(RECORDING_KEYS)})")
+            arrays = [z[k] for k in RECORDING_KEYS]
+    except InputError:
+        raise
+    except (OSError, ValueError, EOFError) as exc:  # not a zip, a pickled array, a truncated file
+        raise InputError(f"{path}: not a readable .npz recording ({exc})") from None
+    return RigRecording(*arrays, meta={"source": str(path)})
 
 
 def rig_file_yaml(rig_file: RigFile) -> str:

@@ -187,6 +187,10 @@ def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConf
 
     if len(recording) < 400:
         raise InputError(f"diagnosis needs at least 400 probe samples, got {len(recording)}")
+    bad_force = int(np.sum(~np.all(np.isfinite(recording.impact_force_n), axis=1)))
+    if bad_force:
+        raise InputError(f"impact_force_n has {bad_force} non-finite sample(s): the hammer force must be finite "
+                         "(zeros where there is no impact)")
     shaft = shaft or shaft_track(recording)
     mats = rotor_matrices(rig)
     t = recording.time_s()

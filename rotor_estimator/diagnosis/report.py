@@ -107,6 +107,13 @@ def markdown(d: Diagnosis, summary: dict) -> str:
     lines.append(f"Residual RMS {_fmt_um(summary['residual_rms_before'])} um before, "
                  f"{_fmt_um(summary['residual_rms_after'])} um after; shrink ratio {summary['shrink_ratio']:.2f}; "
                  f"noise {_fmt_um(summary['noise_std_m'])} um (gap ratio {w['gap_ratio']:.2f}).")
+    data = summary["data"]
+    lines.append("")
+    lines.append(f"Data: {data['samples_used']} of {data['samples']} samples used ({data['non_finite_probe_samples']} "
+                 f"non-finite, {data['outside_tachometer_span_samples']} outside the keyphasor's span, "
+                 f"{data['warm_up_samples']} warm-up), {data['impacts']} impact(s).")
+    for text in data["warnings"]:
+        lines += ["", f"> **Warning:** {text}."]
     lines += ["", "## 1. Where the gap lies", ""]
     lines.append(f"Dominant channel **{w['dominant_channel']}**, dominant band **{w['dominant_band']}**.")
     lines += ["", "| band | share of excess power | RMS (um) |", "|---|---|---|"]

@@ -130,7 +130,9 @@ def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
 
     rig = rig_file.rig
     sim = simulate_with_effects(rig, _scenario(rig), HiddenEffects(runout_m=RUNOUT), seed=5)
-    save_recording(tmp_path / "rec.npz", sim.recording)
+    rec = sim.recording
+    rec.probes_m[3000:3007, 1] = np.nan  # a probe dropout: counted and left out, never silently used
+    save_recording(tmp_path / "rec.npz", rec)
     (tmp_path / "rig.yaml").write_text(rig_file_yaml(RigFile(replace(rig, true_coefficients=None), rig_file.estimator)))
     rc = main(["diagnose", str(tmp_path / "rec.npz"), "--rig", str(tmp_path / "rig.yaml"),
                "--report", str(tmp_path / "rep"), "--json"])
@@ -140,6 +142,10 @@ def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
         assert key in s
     assert s["best_effect"] == "probe_runout"
     assert s["shrink_ratio"] > 1.2
+    data = s["data"]
+    assert data["non_finite_probe_samples"] == 7 and data["impacts"] == 2
+    assert data["samples_used"] <= data["samples"] - 7 - data["warm_up_samples"]
+    assert data["warnings"] == ["7 probe sample(s) with a non-finite value were left out"]
     for f in ("report.md", "summary.json", "spectra.png", "orbits.png", "ranking.png"):
         assert (tmp_path / "rep" / f).exists()
 
@@ -171,3 +177,64 @@ def test_exact_delay_matches_a_shifted_sine():
         y = delayed(np.sin(w * t), w * np.cos(w * t), tau, h)
         sel = t > tau + h
         assert np.max(np.abs(y[sel] - np.sin(w * (t[sel] - tau)))) < 2e-4
+
+
+def test_data_accounting_counts_each_left_out_sample_and_warns_without_an_impact():
+    """Every sample not used is counted under its reason; an impact-free record carries the warning."""
+    from types import SimpleNamespace
+
+    from rotor_estimator.diagnosis.api import NO_IMPACT_WARNING, data_accounting
+    from rotor_estimator.recording import RigRecording
+
+    n = 1000
+    probes = np.zeros((n, 4))
+    probes[10:13, 2] = np.inf
+    valid = np.ones(n, bool)
+    valid[-300:] = False  # 30 % outside the keyphasor's span
+    t = np.arange(n) * 50e-6
+    ctx = SimpleNamespace(shaft=SimpleNamespace(valid=valid), t_s=t, mask=valid & np.all(np.isfinite(probes), axis=1))
+    rec = RigRecording(np.arange(n) * 50_000, probes, np.array([0]), np.zeros((n, 2)))
+    d = data_accounting(rec, ctx)
+    assert (d["samples"], d["non_finite_probe_samples"], d["outside_tachometer_span_samples"], d["impacts"]) == (n, 3, 300, 0)
+    assert d["samples_used"] == n - 300 - 3 and d["warm_up_samples"] == 200
+    assert len(d["warnings"]) == 3 and d["warnings"][-1] == NO_IMPACT_WARNING
+    force = np.zeros((n, 2))
+    force[100:103, 0] = 50.0
+    force[500:502, 1] = -20.0
+    d = data_accounting(RigRecording(rec.stamps_ns, np.zeros((n, 4)), rec.pulse_stamps_ns, force),
+                        SimpleNamespace(shaft=SimpleNamespace(valid=np.ones(n, bool)), t_s=t, mask=np.ones(n, bool)))
+    assert d["impacts"] == 2 and d["warnings"] == []
+
+
+@pytest.mark.parametrize("content,match", [
+    (b"not a zip file", "not a readable .npz recording"),
+    ("pickled", "not a readable .npz recording"),
+    ("missing", "missing array.*impact_force_n"),
+])
+def test_bad_npz_recording_is_a_clear_error_naming_the_file(tmp_path, content, match):
+    from rotor_estimator.diagnosis.blind import load_recording
+    from rotor_estimator.errors import InputError
+
+    path = tmp_path / "rec.npz"
+    if content == "pickled":
+        np.savez(path, stamps_ns=np.array([{"a": 1}], dtype=object), probes_m=np.zeros((1, 4)),
+                 pulse_stamps_ns=np.arange(1), impact_force_n=np.zeros((1, 2)))
+    elif content == "missing":
+        np.savez(path, stamps_ns=np.arange(3), probes_m=np.zeros((3, 4)), pulse_stamps_ns=np.arange(1))
+    else:
+        path.write_bytes(content)
+    with pytest.raises(InputError, match=match) as err:
+        load_recording(path)
+    assert str(path) in str(err.value)
+
+
+def test_non_finite_impact_force_is_refused_before_any_fit(rig_file):
+    from rotor_estimator.errors import InputError
+    from rotor_estimator.recording import RigRecording
+
+    n = 2000
+    force = np.zeros((n, 2))
+    force[7, 0] = np.nan
+    rec = RigRecording(np.arange(n) * 50_000, np.zeros((n, 4)), np.arange(0, n * 50_000, 2_000_000), force)
+    with pytest.raises(InputError, match="impact_force_n has 1 non-finite"):
+        build_context(rec, rig_file.rig, rig_file.estimator)
