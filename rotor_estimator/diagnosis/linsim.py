@@ -33,6 +33,17 @@ BLOCK_SAMPLES = 256
 
 
 @njit(cache=True)
+def _project_outputs(states, c_out, out):
+    """``out[k] = C q[k]`` for every sample (the same loop for the linear and the cubic recursion)."""
+    for k in range(states.shape[0]):
+        for r in range(c_out.shape[0]):
+            acc = 0.0
+            for j in range(states.shape[1]):
+                acc += c_out[r, j] * states[k, j]
+            out[k, r] = acc
+
+
+@njit(cache=True)
 def _propagate(phi, g1, g2, block, us, uz, q0, c_out):
     """Run the FOH/ZOH recursion; returns outputs (N, p) = C q and the states (N, n)."""
     n_samples = us.shape[0]
@@ -52,12 +63,7 @@ def _propagate(phi, g1, g2, block, us, uz, q0, c_out):
             for j in range(m):
                 acc += g1[b, i, j] * (us[k, j] + uz[k, j]) + g2[b, i, j] * (us[k + 1, j] - us[k, j])
             states[k + 1, i] = acc
-    for k in range(n_samples):
-        for r in range(p):
-            acc = 0.0
-            for j in range(n):
-                acc += c_out[r, j] * states[k, j]
-            out[k, r] = acc
+    _project_outputs(states, c_out, out)
     return out, states
 
 
@@ -119,6 +125,32 @@ def steady_state(a: np.ndarray, b: np.ndarray, phasors: np.ndarray, speed_rad_s:
     return q
 
 
+def _discretized_blocks(build_a: Callable[[float], np.ndarray], b: np.ndarray, h_s: float,
+                        schedule: SpeedSchedule, cache: dict | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``Phi, Gamma1, Gamma2`` per speed block, (blocks, n, n), (blocks, n, m) twice; cached by speed."""
+    n_blocks = schedule.speeds_rad_s.size
+    n, m = b.shape
+    phi = np.empty((n_blocks, n, n))
+    g1 = np.empty((n_blocks, n, m))
+    g2 = np.empty((n_blocks, n, m))
+    for i, w in enumerate(schedule.speeds_rad_s):
+        key = round(float(w), 6)
+        if cache is not None and key in cache:
+            phi[i], g1[i], g2[i] = cache[key]
+        else:
+            phi[i], g1[i], g2[i] = discretize(build_a(float(w)), b, h_s)
+            if cache is not None:
+                cache[key] = (phi[i], g1[i], g2[i])
+    return phi, g1, g2
+
+
+def _first_revolutions_phasors(u_smooth: np.ndarray, angle_rad: np.ndarray, speed_rad_s: float,
+                               h_s: float) -> np.ndarray:
+    """:func:`harmonic_phasors` of ``u_smooth`` over its first two revolutions (at least 8 samples)."""
+    rev = min(max(8, int(round(2 * (2 * np.pi / max(speed_rad_s, 1e-6)) / h_s))), u_smooth.shape[0])
+    return harmonic_phasors(u_smooth[:rev], angle_rad[:rev])
+
+
 def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,
                     schedule: SpeedSchedule, angle_rad: np.ndarray, u_smooth: np.ndarray,
                     u_step: np.ndarray | None = None, *, steady_start: bool = True,
@@ -129,32 +161,15 @@ def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np
     ``steady_start`` the first state is the periodic steady state of ``u_smooth`` over
     the first revolutions (zero otherwise).
     """
-    n_blocks = schedule.speeds_rad_s.size
-    n, m = b.shape
-    phi = np.empty((n_blocks, n, n))
-    g1 = np.empty((n_blocks, n, m))
-    g2 = np.empty((n_blocks, n, m))
-    a0 = None
-    for i, w in enumerate(schedule.speeds_rad_s):
-        key = round(float(w), 6)
-        if cache is not None and key in cache:
-            phi[i], g1[i], g2[i] = cache[key]
-        else:
-            a_w = build_a(float(w))
-            phi[i], g1[i], g2[i] = discretize(a_w, b, h_s)
-            if cache is not None:
-                cache[key] = (phi[i], g1[i], g2[i])
-        if i == 0:
-            a0 = build_a(float(w))
+    n = b.shape[0]
+    phi, g1, g2 = _discretized_blocks(build_a, b, h_s, schedule, cache)
     u_smooth = np.ascontiguousarray(u_smooth, dtype=float)
     u_step = np.zeros_like(u_smooth) if u_step is None else np.ascontiguousarray(u_step, dtype=float)
     q0 = np.zeros(n)
     if steady_start and np.any(u_smooth):
         w0 = float(schedule.speeds_rad_s[0])
-        rev = max(8, int(round(2 * (2 * np.pi / max(w0, 1e-6)) / h_s)))
-        rev = min(rev, u_smooth.shape[0])
-        ph = harmonic_phasors(u_smooth[:rev], angle_rad[:rev])
-        q0 = steady_state(a0, b, ph, w0, float(angle_rad[0]))
+        ph = _first_revolutions_phasors(u_smooth, angle_rad, w0, h_s)
+        q0 = steady_state(build_a(w0), b, ph, w0, float(angle_rad[0]))
     return _propagate(phi, g1, g2, np.ascontiguousarray(schedule.block_of_sample), u_smooth, u_step, q0,
                       np.ascontiguousarray(c, dtype=float))
 
@@ -197,12 +212,7 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0):
             for j in range(m):
                 acc += g2[b, i, j] * (f1[j] - fk[j])
             states[k + 1, i] = acc
-    for k in range(n_samples):
-        for r in range(p):
-            acc = 0.0
-            for j in range(n):
-                acc += c_out[r, j] * states[k, j]
-            out[k, r] = acc
+    _project_outputs(states, c_out, out)
     return out, states
 
 
@@ -216,23 +226,11 @@ def simulate_cubic(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.
     by the steady harmonic part of ``u_smooth`` (fitted over the first revolutions),
     started from the linear steady state; the pre-roll is dropped from the output.
     """
-    n_blocks = schedule.speeds_rad_s.size
     n, m = b.shape
-    phi = np.empty((n_blocks, n, n))
-    g1 = np.empty((n_blocks, n, m))
-    g2 = np.empty((n_blocks, n, m))
-    for i, w in enumerate(schedule.speeds_rad_s):
-        key = round(float(w), 6)
-        if cache is not None and key in cache:
-            phi[i], g1[i], g2[i] = cache[key]
-        else:
-            phi[i], g1[i], g2[i] = discretize(build_a(float(w)), b, h_s)
-            if cache is not None:
-                cache[key] = (phi[i], g1[i], g2[i])
+    phi, g1, g2 = _discretized_blocks(build_a, b, h_s, schedule, cache)
     w0 = float(schedule.speeds_rad_s[0])
     n_pre = int(round(preroll_s / h_s))
-    rev = min(max(8, int(round(2 * (2 * np.pi / max(w0, 1e-6)) / h_s))), u_smooth.shape[0])
-    ph = harmonic_phasors(u_smooth[:rev], angle_rad[:rev])
+    ph = _first_revolutions_phasors(u_smooth, angle_rad, w0, h_s)
     ang_pre = angle_rad[0] - w0 * h_s * np.arange(n_pre, 0, -1)
     u_pre = np.zeros((n_pre, m))
     for hh in range(ph.shape[0]):
