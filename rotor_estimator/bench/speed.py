@@ -55,7 +55,9 @@ def run(n_filterpy_samples: int = 1500, repeats: int = 5, rig_path=None) -> dict
     ekf.reset()
     ekf.process_block(*(a[:n] for a in args))
     rel = np.abs(ekf.coefficients - fp.x.ravel()[8:]) / np.abs(rig.true_coefficients.as_array())
-    return {
+    from .frontend import run as run_frontend
+
+    return {**run_frontend(us_block), 
         "us_per_sample": us_block,
         "us_per_sample_step_api": us_step,
         "filterpy_us_per_sample": us_filterpy,
@@ -77,4 +79,7 @@ def format_result(r: dict) -> str:
         f"  speedup (same process, same samples): {r['speedup']:.1f}x",
         f"  estimates agree with filterpy to {r['max_relative_difference_vs_filterpy']:.1e} "
         f"(relative, after {r['samples_compared']} samples)",
+        "Front end per sample (ratio to the EKF block kernel, same process):",
+        *(f"  {name:26s} {r[name + '_us_per_sample']:8.3f} us/sample = {r[name + '_to_ekf_ratio']:.2f}x the EKF"
+          for name in ("aligner", "tachometer_query", "probe_message_round_trip")),
     ])
