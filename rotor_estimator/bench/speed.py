@@ -14,6 +14,7 @@ from ..ekf import StreamingEKF
 from ..offline import shaft_inputs_from_recording
 from ..simulator import paper_scenario, simulate
 from .filterpy_baseline import run_filterpy
+from .frontend import run as run_frontend
 
 
 def run(n_filterpy_samples: int = 1500, repeats: int = 5, rig_path=None) -> dict:
@@ -55,9 +56,8 @@ def run(n_filterpy_samples: int = 1500, repeats: int = 5, rig_path=None) -> dict
     ekf.reset()
     ekf.process_block(*(a[:n] for a in args))
     rel = np.abs(ekf.coefficients - fp.x.ravel()[8:]) / np.abs(rig.true_coefficients.as_array())
-    from .frontend import run as run_frontend
-
-    return {**run_frontend(us_block), 
+    return {
+        **run_frontend(us_block),
         "us_per_sample": us_block,
         "us_per_sample_step_api": us_step,
         "filterpy_us_per_sample": us_filterpy,
