@@ -516,12 +516,17 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         # the force's single fit dragged to absorb the structure's own response)
         to_refine |= {i for i, p in enumerate(pairs) if p.name in ALWAYS_REFINED_PAIRS and (
             p.base == (top.name,) or _carries_base(by_name[p.name], tuple(f for f in singles if f.name == p.base[0])))}
+        # and every signal transform (a channel delay) on any base: its first pass delays the base's model
+        # about the coefficients the base's single fit dragged to absorb the delay too (misalignment with a
+        # 100 us skew ranked 11th in its first pass and was called runout)
+        to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].transforms_signal}
         for i in sorted(to_refine):
             p = pairs[i]
             a = next(f for f in singles if f.name == p.base[0])
             actx = a.ctx or ctx
             nl_starts = tuple(by_name[p.name].refine_starts(actx))
-            from_prior = (actx.prior_coefficients,) if p.name in PRIOR_STRUCTURAL_STARTS else ()
+            from_prior = (actx.prior_coefficients,) \
+                if p.name in PRIOR_STRUCTURAL_STARTS or by_name[p.name].transforms_signal else ()
             # a pedestal or hardening also starts from the prior r0 at each of its structural starts, as its
             # single does: its partner's single fit may have dragged the coefficients into a basin where it is
             # invisible (the bending mode's 15 starts are left out for time, as in ALWAYS_REFINED_PAIRS)
