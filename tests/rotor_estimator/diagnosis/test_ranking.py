@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -103,3 +104,29 @@ def test_held_out_check_accepts_a_tie_within_its_resolution_and_rejects_a_clear_
     assert predicts_held_out(ref * 0.9, ref)
     assert predicts_held_out(ref * (1 + 0.5 * HELD_OUT_TOLERANCE), ref)  # case_019 of seed 2033: +0.056 %
     assert not predicts_held_out(ref * 1.01, ref)
+
+
+def test_strong_misalignment_with_near_limit_skew_is_the_pair_not_runout():
+    """A 250 N 2X force seen through probes skewed by up to 100 us (the skew's own gap 1.27x): both named.
+
+    The conditions of a blind case (seed 2035, case_025) that was called runout: the skew pair's first
+    pass, linearized about the coefficients the misalignment fit had dragged, ranked it eleventh; only
+    its joint refit with the coefficients shows it (every signal-transform pair is now refitted).
+    """
+    rf = load_rig_file()
+    speed = 22983.9 * math.pi / 30
+    rig = replace(rf.rig, speed_rad_s=speed, noise_std_m=1.37e-6)
+    r_true = np.array([566750.0, 487191.0, -311362.0, 672825.0, 1420.9, 38.4, -46.2, 1329.4])
+    scenario = EffectScenario(speed_rad_s=speed, duration_s=0.2734, lead_in_s=0.3,
+                              impacts=(Impact(0.135, 50e-6, 46.9, -295.4),), noise_std_m=1.37e-6,
+                              coefficients=r_true)
+    effects = HiddenEffects(misalignment_n=(-244.1, 56.9, 61.6, -181.7), preload_n=(-11.6, 4.2),
+                            skew_s=(-29.3e-6, 38.6e-6, 99.5e-6))
+    sim = simulate_with_effects(rig, scenario, effects, seed=2035026)
+    ctx = build_context(sim.recording, replace(rig, true_coefficients=None), rf.estimator)
+    rk = rank_effects(ctx)
+    assert rk.best is not None and rk.second is not None, [(f.name, round(f.delta_bic)) for f in rk.singles[:3]]
+    assert {rk.best.name, rk.second.name} == {"misalignment", "timing_skew"}, (rk.best.name, rk.second.name)
+    skew_fit = rk.second if rk.second.name == "timing_skew" else rk.best
+    skew = [skew_fit.physical[f"skew_{c}_s"] for c in ("yp1", "xp2", "yp2")]
+    assert np.allclose(skew, effects.skew_s, atol=10e-6), skew
