@@ -21,7 +21,7 @@ import numpy as np
 
 import msg_adapters as ma
 
-from .bagio import OutputBagWriter, _open_writer, _tag, bag_topics, iter_bag_messages
+from .bagio import BagWriter, OutputBagWriter, _tag, bag_topics, iter_bag_messages
 from .errors import BagError, InputError
 from .flexible.description import RotorDescription
 from .virtual_sensing import LeaveOneOutReport, StationEstimate
@@ -107,14 +107,11 @@ def write_sensor_bag(path: str | Path, rotor: RotorDescription, stamps_ns: np.nd
     streams = {ma.sensor_topic(s.name, prefix): ("sensor_msgs/msg/PointCloud2", sensor_msgs(s))
                for s in rotor.sensors}
     streams[keyphasor_topic] = ("sensor_msgs/msg/TimeReference", pulse_msgs())
-    writer = _open_writer(path, {"rotor": rotor.name, **(meta or {})})
-    try:
+    with BagWriter(path, {"rotor": rotor.name, **(meta or {})}) as writer:
         conns = {t: writer.add_connection(t, typename, typestore=ts) for t, (typename, _) in streams.items()}
         tagged = [_tag(t, gen) for t, (_, gen) in streams.items()]
         for log_ns, _, topic, msg in heapq.merge(*tagged, key=lambda item: (item[0], item[1])):
             writer.write(conns[topic], log_ns, ts.serialize_cdr(msg, msg.__msgtype__))
-    finally:
-        writer.close()
     return path
 
 

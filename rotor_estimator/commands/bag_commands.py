@@ -23,22 +23,23 @@ from ..identification.identifiability import NOT_DETERMINED, WEAK
 
 # ---------------------------------------------------------------------------------- replay
 def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str | Path | None = None, *,
-               progress: bool = True, publish_period_s: float = 0.05) -> dict[str, Any]:
+               progress: bool = True, publish_period_s: float = 0.05, salvage: bool = False) -> dict[str, Any]:
     """Replay ``bag`` through the pipeline (``passes`` from the rig file); return the summary dict."""
     from tqdm import tqdm
 
     import msg_adapters as ma
 
     from ..alignment import AlignmentConfig
-    from ..bagio import OutputBagWriter, bag_topics, iter_bag_messages
+    from ..bagio import OutputBagWriter, bag_damage, bag_topics, iter_bag_messages
     from ..config import COEFFICIENT_NAMES, COEFFICIENT_UNITS, load_rig_file
     from ..nodes.io import feed_message, output_messages, stream_by_topic
     from ..pipeline import EstimatorPipeline
 
     rig_file = load_rig_file(rig_path)
     topics = ma.DEFAULT_INPUT_TOPICS
-    available = bag_topics(bag)
-    missing = [t for t in (topics.probe1, topics.probe2, topics.keyphasor) if t not in available]
+    damage = bag_damage(bag) if salvage else None
+    available = bag_topics(bag) if damage is None else None
+    missing = [t for t in (topics.probe1, topics.probe2, topics.keyphasor) if available is not None and t not in available]
     if missing:
         raise BagError(f"bag {bag} lacks input topic(s) {missing}; it has {sorted(available)}")
     if out_bag is not None and Path(out_bag).exists():
@@ -57,7 +58,7 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
         try:
             with tqdm(desc=f"replay pass {k + 1}/{passes}", unit="msg", file=sys.stderr, disable=not progress,
                       leave=False) as bar:
-                for m in iter_bag_messages(bag, list(streams)):
+                for m in iter_bag_messages(bag, list(streams), salvage=salvage, warn=k == 0):
                     feed_message(pipe, streams[m.topic], m.msg)
                     outs = pipe.process()
                     if writer is not None:
@@ -66,9 +67,12 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
                 outs = pipe.flush()
                 if writer is not None:
                     written += _write(writer, outs, output_messages, rig_file.rig.name)
-        finally:
+        except BaseException:  # error or Ctrl-C: no partial output bag is left behind
             if writer is not None:
-                writer.close()
+                writer.abort()
+            raise
+        if writer is not None:
+            writer.close()
         if not outs:
             raise InputError(f"bag {bag}: no probe sample could be filtered "
                              f"({pipe.accounting().summary()}); check the topics and keyphasor pulses")
@@ -90,7 +94,8 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
             "accounting_balanced": acc.balanced(), "pulses": dict(acc.pulses),
             "status": {"level": d.level, "message": d.message, "converged": d.converged,
                        "nis_window_mean": d.nis_window_mean, "divergence_recoveries": d.divergence_recoveries},
-            "out": str(out_bag) if out_bag is not None else None, "outputs_written": written}
+            "out": str(out_bag) if out_bag is not None else None, "outputs_written": written,
+            "salvaged": damage.describe() if damage is not None else None}
 
 
 def _write(writer, outs, output_messages, hardware_id: str) -> int:
@@ -120,7 +125,7 @@ def format_replay(r: dict[str, Any]) -> str:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    result = replay_bag(args.bag, args.rig, args.out, progress=not args.no_progress)
+    result = replay_bag(args.bag, args.rig, args.out, progress=not args.no_progress, salvage=args.salvage)
     print(json.dumps(result, indent=1) if args.json else format_replay(result))
     return 0
 
@@ -300,6 +305,7 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("bag", type=Path, help="rosbag2 directory or .mcap file with the input topics")
     p.add_argument("--rig", type=Path, default=None, help="rig YAML (default: the bundled seed rig)")
     p.add_argument("--out", type=Path, default=None, help="write the node's output topics to this new MCAP bag")
+    p.add_argument("--salvage", action="store_true", help="use the intact part of a damaged bag (the messages lost are counted and reported on stderr); without it a damaged bag is an error")
     p.add_argument("--json", action="store_true", help="print JSON (SI units)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_replay)

@@ -65,7 +65,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if args.bag:
         from ..bagio import read_input_bag
 
-        recording = read_input_bag(args.bag)
+        recording = read_input_bag(args.bag, salvage=args.salvage)
     else:
         from ..identification.benchmark import scenarios
         from ..simulator import simulate
@@ -156,6 +156,7 @@ def add_parsers(subparsers) -> None:
                                                "the identifiability report")
     src = i.add_mutually_exclusive_group(required=True)
     src.add_argument("--bag", type=Path, help="input bag (probe, keyphasor and impact topics)")
+    i.add_argument("--salvage", action="store_true", help="use the intact part of a damaged bag (the messages lost are counted and reported on stderr); without it a damaged bag is an error")
     src.add_argument("--simulate", metavar="SCENARIO",
                      help="simulate a benchmark scenario: imbalance+impact, imbalance, cd0.5, cd2, 5imp")
     i.add_argument("--seed", type=int, default=1)
