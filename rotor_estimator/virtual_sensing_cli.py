@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError, RotorEstimatorError
+from . import cli_types
 from .flexible.description import load_rotor_description
 from .flexible.state_space import (FlexibleStateSpace, build_state_space, periodic_steady_state, simulate,
                                    station_outputs, unbalance_inputs)
@@ -51,15 +52,15 @@ def add_virtual_sensing_parser(subparsers: Any) -> argparse.ArgumentParser:
                                               "(<prefix>/<sensor name>) and keyphasor TimeReference pulses")
     p.add_argument("--sensor-topic-prefix", default="/rotor", help="sensor topics of --bag (default /rotor)")
     p.add_argument("--keyphasor-topic", default="/rotor/keyphasor", help="keyphasor topic of --bag")
-    p.add_argument("--samples", type=int, default=4096, help="synthetic samples when no --data (default 4096)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the synthetic data")
+    p.add_argument("--samples", type=cli_types.positive_int, default=4096, help="synthetic samples when no --data (default 4096)")
+    p.add_argument("--seed", type=cli_types.seed, default=0, help="random seed of the synthetic data")
     p.add_argument("--filter", choices=FILTERS, default="kf", help="kf (exact), ekf or ukf (default kf)")
     p.add_argument("--alpha", type=float, default=1e-3, help="UKF alpha (default 1e-3)")
     p.add_argument("--beta", type=float, default=2.0, help="UKF beta (default 2)")
     p.add_argument("--kappa", type=float, default=0.0, help="UKF kappa (default 0)")
-    p.add_argument("--n-modes", type=int, help="modes kept (overrides the rotor file; 0: all)")
+    p.add_argument("--n-modes", type=cli_types.non_negative_int, help="modes kept (overrides the rotor file; 0: all)")
     p.add_argument("--hide", action="append", metavar="SENSOR", help="sensor to hide (repeatable; default all)")
-    p.add_argument("--burn-in", type=int, default=0, help="samples left out of the statistics")
+    p.add_argument("--burn-in", type=cli_types.non_negative_int, default=0, help="samples left out of the statistics")
     p.add_argument("--estimates-out", type=Path, help="write station estimates (mean, std, ellipse) to NPZ")
     p.add_argument("--station", action="append", metavar="NAME[=AXIAL_M]",
                    help="station to estimate (repeatable): a station or sensor of the rotor file, or name=axial "
@@ -83,8 +84,8 @@ def add_bench_parser(bench_subparsers: Any) -> argparse.ArgumentParser:
         description="Time a UKF with 150 states and 8 observations over 8192 samples (Neisi et al.: more "
                     "than eight hours), the exact Kalman filter on the same model, their agreement, and "
                     "the leave-one-station-out coverage.")
-    p.add_argument("--samples", type=int, default=8192)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--samples", type=cli_types.positive_int, default=8192)
+    p.add_argument("--seed", type=cli_types.seed, default=0)
     p.add_argument("--alpha", type=float, default=0.01, help="UKF alpha (Table 5 of the paper: 0.01)")
     p.add_argument("--beta", type=float, default=2.0)
     p.add_argument("--kappa", type=float, default=0.0)
