@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from .errors import RotorEstimatorError
+from . import cli_types
 
 
 def _progress(total: int, desc: str, enabled: bool = True):
@@ -96,7 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("reproduce", help="reproduce a seed paper's results (Table 3 of Miller & Howard)")
     p.add_argument("paper", choices=["miller-howard"], help="which paper")
     p.add_argument("--runs", type=int, default=50, help="seeded runs per case (default 50; the paper used 20)")
-    p.add_argument("--seed", type=int, default=1, help="first noise seed (default 1)")
+    p.add_argument("--seed", type=cli_types.seed, default=1, help="first noise seed (default 1)")
     p.add_argument("--rig", type=Path, default=None, help="rig YAML (default: the bundled seed rig)")
     p.add_argument("--json", action="store_true", help="print JSON rows instead of the table")
     p.add_argument("--plots", metavar="DIR", default=None, help="write PNG figures (Fig. 4 and 5 analogues) to DIR")
