@@ -23,6 +23,7 @@ import numpy as np
 
 from .errors import InputError, RotorEstimatorError
 from . import cli_types
+from .safe_write import save_npz
 from .flexible.description import load_rotor_description
 from .flexible.state_space import (FlexibleStateSpace, build_state_space, periodic_steady_state, simulate,
                                    station_outputs, unbalance_inputs)
@@ -52,7 +53,8 @@ def add_virtual_sensing_parser(subparsers: Any) -> argparse.ArgumentParser:
                                               "(<prefix>/<sensor name>) and keyphasor TimeReference pulses")
     p.add_argument("--sensor-topic-prefix", default="/rotor", help="sensor topics of --bag (default /rotor)")
     p.add_argument("--keyphasor-topic", default="/rotor/keyphasor", help="keyphasor topic of --bag")
-    p.add_argument("--samples", type=cli_types.positive_int, default=4096, help="synthetic samples when no --data (default 4096)")
+    p.add_argument("--samples", type=cli_types.positive_int, default=4096,
+                   help="synthetic samples when no --data (default 4096)")
     p.add_argument("--seed", type=cli_types.seed, default=0, help="random seed of the synthetic data")
     p.add_argument("--filter", choices=FILTERS, default="kf", help="kf (exact), ekf or ukf (default kf)")
     p.add_argument("--alpha", type=float, default=1e-3, help="UKF alpha (default 1e-3)")
@@ -322,7 +324,7 @@ def _write_estimates(path: Path, estimates: list, confidence: float) -> None:
         arrays[f"{e.name}_ellipse_semi_major_m"] = ell[:, 0]
         arrays[f"{e.name}_ellipse_semi_minor_m"] = ell[:, 1]
         arrays[f"{e.name}_ellipse_angle_rad"] = ell[:, 2]
-    np.savez(path, **arrays)
+    save_npz(path, **arrays)  # never through a symbolic link (safe_write)
 
 
 # --------------------------------------------------------------------------- bench
