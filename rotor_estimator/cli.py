@@ -58,8 +58,9 @@ def _reproduce_plots(rig_file, results, out: Path) -> None:
     from .plots import coefficient_error_history, orbit_comparison
     from .simulator import Scenario, paper_scenario, simulate
     from .config import BearingCoefficients
+    from .safe_write import output_directory
 
-    out.mkdir(parents=True, exist_ok=True)
+    output_directory(out, "--plots")  # refuses a symbolic link (safe_write)
     rig = rig_file.rig
     for r in results:
         ex = r.example
