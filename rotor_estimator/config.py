@@ -467,6 +467,8 @@ def load_yaml_file(path: str | Path, what: str = "rig file") -> Any:
     try:
         if path.is_dir():
             raise ConfigError(f"{what} {path}: is a directory, expected a YAML file")
+        if path.exists() and not path.is_file():  # a FIFO would block the read forever
+            raise ConfigError(f"{what} {path}: not a regular file (a pipe or device), expected a YAML file")
         with open(path, "rb") as fh:
             raw = fh.read(MAX_YAML_BYTES + 1)
     except OSError as exc:

@@ -1,4 +1,7 @@
 """Rig files load, validate, and reject bad input with a message naming the field."""
+import os
+import threading
+
 import pytest
 import yaml
 
@@ -143,7 +146,8 @@ def test_python_tags_are_refused(tmp_path):
 
 
 def test_size_encoding_and_directory_are_refused(tmp_path):
-    """A file over the size limit, a Latin-1 file and a directory each give one line naming the cause."""
+    """A file over the size limit, a Latin-1 file, a directory and a named pipe (which would block
+    the read) each give one line naming the cause."""
     from rotor_estimator.config import MAX_YAML_BYTES
 
     big = tmp_path / "big.yaml"
@@ -153,6 +157,26 @@ def test_size_encoding_and_directory_are_refused(tmp_path):
     latin.write_bytes(SEED_TEXT.replace("miller_howard_2008", "m\u00fcller").encode("latin-1"))
     _one_line_config_error(latin, r"not UTF-8 text \(byte 0xfc at offset \d+\)")
     _one_line_config_error(tmp_path, "is a directory")
+    fifo = tmp_path / "rig.fifo"
+    os.mkfifo(fifo)  # opening it for reading blocks until a writer appears
+    threading.Thread(target=_feed_fifo, args=(fifo, b"rig: 5\n"), daemon=True).start()  # unblocks a reader
+    _one_line_config_error(fifo, "not a regular file")
+
+
+def _feed_fifo(fifo, data, timeout_s=5.0):
+    """Write ``data`` into ``fifo`` if a reader opens it within ``timeout_s`` (never blocks)."""
+    import time
+
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        try:
+            fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
+        except OSError:
+            time.sleep(0.05)
+            continue
+        os.write(fd, data)
+        os.close(fd)
+        return
 
 
 def test_huge_integer_and_deep_nesting_are_refused(tmp_path):
