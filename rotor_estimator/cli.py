@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -88,11 +89,25 @@ def cmd_bench_speed(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------------- parser
+def _version() -> str:
+    """The installed distribution's version (the package's own when run from a source tree)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from . import __version__
+
+    try:
+        return version("rotor_estimator")
+    except PackageNotFoundError:
+        return __version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rotor-estimator",
         description="Identify rotor-bearing stiffness and damping (EKF) and diagnose model-vs-rig gaps. "
                     "All values SI.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                        help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("reproduce", help="reproduce a seed paper's results (Table 3 of Miller & Howard)")
@@ -113,7 +128,32 @@ def build_parser() -> argparse.ArgumentParser:
     b.set_defaults(func=cmd_bench_speed)
 
     _add_optional_commands(sub, bench)
+    for leaf in _leaf_parsers(parser):
+        if not any("--no-progress" in a.option_strings for a in leaf._actions):
+            leaf.add_argument("--no-progress", action="store_true", help=SHARED_OPTION_HELP["--no-progress"])
+        for action in leaf._actions:
+            if not action.help and action.option_strings and action.option_strings[-1] in SHARED_OPTION_HELP:
+                action.help = SHARED_OPTION_HELP[action.option_strings[-1]]
     return parser
+
+
+# One wording for the options every command shares (used where a command gives none of its own).
+SHARED_OPTION_HELP = {
+    "--json": "print machine-readable JSON (SI units) instead of the text table",
+    "--rig": "rig YAML file (default: the bundled Miller & Howard seed rig)",
+    "--seed": "random seed, an integer from 0 to 2^32 - 1 (default %(default)s)",
+    "--no-progress": "no progress bar on stderr",
+}
+
+
+def _leaf_parsers(parser: argparse.ArgumentParser):
+    """Every command's own parser (the leaves of the subcommand tree)."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        yield parser
+    for action in subs:
+        for child in dict.fromkeys(action.choices.values()):  # aliases map to the same parser
+            yield from _leaf_parsers(child)
 
 
 def _add_optional_commands(sub, bench) -> None:
@@ -129,6 +169,8 @@ def _add_optional_commands(sub, bench) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.no_progress:
+        os.environ["TQDM_DISABLE"] = "1"  # every tqdm bar, also those deep in library code
     try:
         return int(args.func(args) or 0)
     except RotorEstimatorError as exc:

@@ -86,11 +86,12 @@ def add_bench_parser(bench_subparsers: Any) -> argparse.ArgumentParser:
         description="Time a UKF with 150 states and 8 observations over 8192 samples (Neisi et al.: more "
                     "than eight hours), the exact Kalman filter on the same model, their agreement, and "
                     "the leave-one-station-out coverage.")
-    p.add_argument("--samples", type=cli_types.positive_int, default=8192)
+    p.add_argument("--samples", type=cli_types.positive_int, default=8192,
+                   help="samples filtered per run (default 8192)")
     p.add_argument("--seed", type=cli_types.seed, default=0)
     p.add_argument("--alpha", type=float, default=0.01, help="UKF alpha (Table 5 of the paper: 0.01)")
-    p.add_argument("--beta", type=float, default=2.0)
-    p.add_argument("--kappa", type=float, default=0.0)
+    p.add_argument("--beta", type=float, default=2.0, help="UKF beta (default 2)")
+    p.add_argument("--kappa", type=float, default=0.0, help="UKF kappa (default 0)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run_bench)
     return p

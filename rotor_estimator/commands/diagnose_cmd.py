@@ -83,10 +83,10 @@ def add_parsers(subparsers) -> None:
 
 def add_bench_parsers(bench_subparsers) -> None:
     b = bench_subparsers.add_parser("diagnosis", help="blind withheld-effect benchmark of `diagnose`")
-    b.add_argument("--cases", type=int, default=36)
+    b.add_argument("--cases", type=int, default=36, help="blind cases to draw (default 36)")
     b.add_argument("--seed", type=cli_types.seed, default=2024)
     b.add_argument("--out", default=None, help="keep the blind set, labels and results here")
-    b.add_argument("--jobs", type=int, default=2)
-    b.add_argument("--no-ross", action="store_true")
+    b.add_argument("--jobs", type=int, default=2, help="cases diagnosed at once, one process each (default 2)")
+    b.add_argument("--no-ross", action="store_true", help="leave out the ROSS flexible-shaft cases")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_diagnosis)

@@ -164,7 +164,8 @@ def add_parsers(subparsers) -> None:
     i.add_argument("--rig", type=Path, default=None)
     i.add_argument("--method", default="auto", help="auto (batch-ml), batch-ml, ekf+rts, ekf, ukf")
     i.add_argument("--unknown-imbalance", action="store_true", help="estimate the imbalance jointly")
-    i.add_argument("--bearings", type=int, choices=(8, 16), default=8)
+    i.add_argument("--bearings", type=int, choices=(8, 16), default=8,
+                   help="8 coefficients (identical bearings, default) or 16 (each bearing its own)")
     i.add_argument("--speed-order", type=int, default=0,
                    help="> 0: coefficients as speed polynomials of this order (prints the table)")
     i.add_argument("--plots", metavar="DIR", default=None, help="coefficient-versus-speed figure into DIR")
