@@ -194,3 +194,20 @@ def test_yaml_syntax_error_is_one_line_with_position(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("rig:\n  name: [unclosed\nestimator: {}\n")
     _one_line_config_error(bad, r"not valid YAML: .* at line \d+, column \d+")
+
+
+def test_rotor_files_get_the_same_limits(tmp_path):
+    """Rotor description files (virtual sensing) load through the same strict loader: a duplicate
+    key and a !!python tag are refused naming the rotor file."""
+    from rotor_estimator.flexible.description import ROTORS_DIR, load_rotor_description
+
+    text = (ROTORS_DIR / "three_probe_rig.yaml").read_text()
+    first = next(line for line in text.splitlines() if line.strip().startswith("name:"))
+    dup = tmp_path / "dup.yaml"
+    dup.write_text(text.replace(first + "\n", first + "\n" + first + "\n", 1))
+    with pytest.raises(ConfigError, match=r"rotor file .*dup.yaml: duplicate key 'name'"):
+        load_rotor_description(dup)
+    evil = tmp_path / "evil.yaml"
+    evil.write_text("rotor: !!python/object/apply:os.getcwd []\n")
+    with pytest.raises(ConfigError, match=r"rotor file .*evil.yaml: refused the tag !!python/object/apply"):
+        load_rotor_description(evil)
