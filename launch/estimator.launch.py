@@ -1,6 +1,8 @@
 """Launch the estimator node with config/estimator.yaml (override with params_file:=...).
 
-Needs a full ROS 2 install (launch, launch_ros); not used by the tests.
+``namespace:=/rig2`` runs it as /rig2/rotor_estimator: the shipped file is keyed ``/**`` so it
+applies under any name and namespace (outputs then go under /rig2/rotor_estimator/...). Needs a
+full ROS 2 install (launch, launch_ros; package.xml lists them); the tests load it with stand-ins.
 """
 import os
 

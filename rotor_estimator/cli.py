@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from .errors import RotorEstimatorError
+from . import cli_types
 
 
 def _progress(total: int, desc: str, enabled: bool = True):
@@ -58,8 +59,9 @@ def _reproduce_plots(rig_file, results, out: Path) -> None:
     from .plots import coefficient_error_history, orbit_comparison
     from .simulator import Scenario, paper_scenario, simulate
     from .config import BearingCoefficients
+    from .safe_write import output_directory
 
-    out.mkdir(parents=True, exist_ok=True)
+    output_directory(out, "--plots")  # refuses a symbolic link (safe_write)
     rig = rig_file.rig
     for r in results:
         ex = r.example
@@ -111,7 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("reproduce", help="reproduce a seed paper's results (Table 3 of Miller & Howard)")
     p.add_argument("paper", choices=["miller-howard"], help="which paper")
     p.add_argument("--runs", type=int, default=50, help="seeded runs per case (default 50; the paper used 20)")
-    p.add_argument("--seed", type=int, default=1, help="first noise seed (default 1)")
+    p.add_argument("--seed", type=cli_types.seed, default=1, help="first noise seed (default 1)")
     p.add_argument("--rig", type=Path, default=None, help="rig YAML (default: the bundled seed rig)")
     p.add_argument("--json", action="store_true", help="print JSON rows instead of the table")
     p.add_argument("--plots", metavar="DIR", default=None, help="write PNG figures (Fig. 4 and 5 analogues) to DIR")
@@ -139,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
 SHARED_OPTION_HELP = {
     "--json": "print machine-readable JSON (SI units) instead of the text table",
     "--rig": "rig YAML file (default: the bundled Miller & Howard seed rig)",
-    "--seed": "random seed, an integer >= 0 (default %(default)s)",
+    "--seed": "random seed, an integer from 0 to 2^32 - 1 (default %(default)s)",
     "--no-progress": "no progress bar on stderr",
 }
 

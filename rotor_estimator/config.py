@@ -15,6 +15,7 @@ the field by its dotted path and the expected unit or range.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -36,9 +37,29 @@ SEED_RIG_PATH = Path(__file__).with_name("rigs") / "miller_howard_2008.yaml"
 
 
 # --------------------------------------------------------------------------- helpers
+def _kind(value: Any) -> str:
+    """How a YAML value reads to a user: 'the number 5', 'a list', 'nothing (null)'."""
+    if value is None:
+        return "nothing (null)"
+    if isinstance(value, bool):
+        return f"the boolean {str(value).lower()}"
+    if isinstance(value, (int, float)):
+        return f"the number {value!r}" if len(repr(value)) <= 40 else "a number"
+    if isinstance(value, str):
+        return f"the string {value!r}" if len(value) <= 40 else "a string"
+    if isinstance(value, list):
+        return "a list"
+    return f"a {type(value).__name__}"
+
+
+def _require_mapping(value: Any, path: str) -> Mapping[str, Any]:
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"{path}: expected a mapping (YAML object with named fields), got {_kind(value)}")
+    return value
+
+
 def _get(mapping: Mapping[str, Any], key: str, path: str, *, default: Any = ...) -> Any:
-    if not isinstance(mapping, Mapping):
-        raise ConfigError(f"{path}: expected a mapping (YAML object), got {type(mapping).__name__}")
+    _require_mapping(mapping, path)
     if key not in mapping:
         if default is ...:
             raise ConfigError(f"{path}.{key}: missing required field")
@@ -59,7 +80,10 @@ def _number(value: Any, path: str, unit: str, *, low: float | None = None, high:
             raise ConfigError(f"{path}: expected a plain number in {unit}, got the string {value!r} "
                               f"(write SI numbers without units, e.g. 0.1245 for 124.5 mm)")
         raise ConfigError(f"{path}: expected a number in {unit}, got {type(value).__name__}")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:
+        raise ConfigError(f"{path}: number too large ({unit})") from None
     if not math.isfinite(v):
         raise ConfigError(f"{path}: must be finite ({unit}), got {value!r}")
     if low is not None and (v < low or (low_open and v == low)):
@@ -72,8 +96,18 @@ def _number(value: Any, path: str, unit: str, *, low: float | None = None, high:
     return v
 
 
+def _name(value: Any, path: str) -> str:
+    if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+        raise ConfigError(f"{path}: expected a name (text), got {_kind(value)}")
+    text = str(value)
+    if not 0 < len(text) <= 200:
+        raise ConfigError(f"{path}: expected 1 to 200 characters, got {len(text)}")
+    return text
+
+
 def _reject_unknown(mapping: Mapping[str, Any], allowed: set[str], path: str) -> None:
-    unknown = sorted(set(mapping) - allowed)
+    _require_mapping(mapping, path)
+    unknown = sorted((str(k) for k in mapping if k not in allowed))
     if unknown:
         raise ConfigError(f"{path}: unknown field(s) {unknown}; allowed: {sorted(allowed)}")
 
@@ -109,6 +143,7 @@ class BearingCoefficients:
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any], path: str) -> "BearingCoefficients":
         """Read ``kxx_N_per_m ... cyy_N_s_per_m`` keys (plain ``kxx`` also accepted)."""
+        _require_mapping(mapping, path)
         values = []
         for name, long_name, unit in zip(COEFFICIENT_NAMES, COEFFICIENT_NAMES_WITH_UNITS, COEFFICIENT_UNITS):
             key = long_name if long_name in mapping else name
@@ -279,7 +314,7 @@ def rig_from_mapping(data: Mapping[str, Any], path: str = "rig") -> RigConfig:
     if "true_coefficients" in data and data["true_coefficients"] is not None:
         true_coefficients = BearingCoefficients.from_mapping(data["true_coefficients"], f"{path}.true_coefficients")
     rig = RigConfig(
-        name=str(_get(data, "name", path, default="unnamed rig")),
+        name=_name(_get(data, "name", path, default="unnamed rig"), f"{path}.name"),
         shaft_mass_kg=_number(_get(shaft, "mass_kg", f"{path}.shaft"), f"{path}.shaft.mass_kg", "kg",
                               low=0.0, low_open=True, high=1e6),
         polar_inertia_kg_m2=_number(_get(shaft, "polar_inertia_kg_m2", f"{path}.shaft"),
@@ -335,21 +370,143 @@ def estimator_from_mapping(data: Mapping[str, Any], path: str = "estimator") -> 
     return EstimatorConfig(**kwargs).validate()
 
 
-def load_rig_file(path: str | Path | None = None) -> RigFile:
-    """Load a rig YAML file (``None``: the bundled Miller & Howard seed rig)."""
+#: Largest YAML file read (rig and rotor files are a few kB).
+MAX_YAML_BYTES = 1 << 20
+#: Largest number of nodes a YAML document may expand to once its aliases are followed
+#: (the bundled rig has about 100; a 2.8 kB "billion laughs" file expands to 10^9).
+MAX_YAML_NODES = 100_000
+
+
+@functools.lru_cache(maxsize=None)
+def _strict_loader_class():
+    """A ``yaml.SafeLoader`` subclass (no Python tags, ever) that refuses duplicate mapping keys
+    and documents whose aliases expand beyond :data:`MAX_YAML_NODES` nodes (or into a cycle)."""
+    import yaml
+    from yaml.nodes import MappingNode, SequenceNode
+
+    class StrictSafeLoader(yaml.SafeLoader):
+        def compose_document(self):
+            node = super().compose_document()
+            _check_expansion(node)
+            return node
+
+        def construct_mapping(self, node, deep=False):
+            if isinstance(node, MappingNode):
+                seen: dict[Any, int] = {}
+                for key_node, _ in node.value:
+                    if key_node.tag == "tag:yaml.org,2002:merge":
+                        continue  # '<<' merges are overridden by explicit keys, by design
+                    key = self.construct_object(key_node, deep=True)
+                    try:
+                        hash(key)
+                    except TypeError:
+                        continue  # unhashable: the base class reports it
+                    line = key_node.start_mark.line + 1
+                    if key in seen:
+                        raise _DuplicateKey(key, seen[key], line)
+                    seen[key] = line
+            return super().construct_mapping(node, deep=deep)
+
+    def _check_expansion(root) -> None:
+        sizes: dict[int, int] = {}
+        active: set[int] = set()
+
+        def size(node) -> int:
+            key = id(node)
+            if key in sizes:
+                return sizes[key]
+            if key in active:
+                raise _AliasBomb("an alias refers to a node that contains it (a recursive structure)")
+            total = 1
+            if isinstance(node, (SequenceNode, MappingNode)):
+                active.add(key)
+                children = node.value if isinstance(node, SequenceNode) else [n for kv in node.value for n in kv]
+                for child in children:
+                    total += size(child)
+                    if total > MAX_YAML_NODES:
+                        raise _AliasBomb(f"its aliases expand to more than {MAX_YAML_NODES} values")
+                active.discard(key)
+            sizes[key] = total
+            return total
+
+        if root is not None:
+            size(root)
+
+    return StrictSafeLoader
+
+
+class _DuplicateKey(Exception):
+    def __init__(self, key: Any, first_line: int, line: int) -> None:
+        super().__init__(f"duplicate key {str(key)[:60]!r} at line {line} (first given at line {first_line}); "
+                         f"YAML would silently keep the last value: remove one")
+
+
+class _AliasBomb(Exception):
+    pass
+
+
+def _yaml_error_line(exc: Exception) -> str:
+    """One line from a PyYAML error (its own text spans several lines)."""
+    problem = getattr(exc, "problem", None)
+    mark = getattr(exc, "problem_mark", None)
+    if problem:
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        context = getattr(exc, "context", None)
+        return f"{problem}{where}" + (f" ({context})" if context else "")
+    return " ".join(str(exc).split())
+
+
+def load_yaml_file(path: str | Path, what: str = "rig file") -> Any:
+    """Parse a configuration YAML file safely: at most :data:`MAX_YAML_BYTES`, UTF-8, the safe
+    schema only (``!!python/...`` tags are refused), no duplicate keys, no alias bombs.
+
+    Every refusal is a :class:`~rotor_estimator.errors.ConfigError` starting ``{what} {path}:``."""
     import yaml
 
-    path = Path(path) if path is not None else SEED_RIG_PATH
+    path = Path(path)
     try:
-        text = path.read_text()
+        if path.is_dir():
+            raise ConfigError(f"{what} {path}: is a directory, expected a YAML file")
+        if path.exists() and not path.is_file():  # a FIFO would block the read forever
+            raise ConfigError(f"{what} {path}: not a regular file (a pipe or device), expected a YAML file")
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_YAML_BYTES + 1)
     except OSError as exc:
-        raise ConfigError(f"rig file {path}: cannot be read ({exc.strerror or exc})") from exc
+        raise ConfigError(f"{what} {path}: cannot be read ({exc.strerror or exc})") from exc
+    if len(raw) > MAX_YAML_BYTES:
+        raise ConfigError(f"{what} {path}: larger than {MAX_YAML_BYTES // 1024} KiB; "
+                          f"a {what} is a few kB of YAML")
     try:
-        data = yaml.safe_load(text)
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{what} {path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start}); "
+                          f"save it as UTF-8") from None
+    try:
+        return yaml.load(text, Loader=_strict_loader_class())  # noqa: S506 - a SafeLoader subclass
+    except _DuplicateKey as exc:
+        raise ConfigError(f"{what} {path}: {exc}") from None
+    except _AliasBomb as exc:
+        raise ConfigError(f"{what} {path}: refused, {exc}") from None
+    except RecursionError:
+        raise ConfigError(f"{what} {path}: refused, it is nested too deeply") from None
+    except yaml.constructor.ConstructorError as exc:
+        tag = str(getattr(exc, "problem", "")).rpartition("tag ")[2].strip("'")
+        if tag.startswith("tag:yaml.org,2002:python/"):
+            mark = exc.problem_mark
+            raise ConfigError(f"{what} {path}: refused the tag !!{tag.split(':', 2)[2]} at line {mark.line + 1} "
+                              f"(configuration files hold plain data; Python objects are never built)") from None
+        raise ConfigError(f"{what} {path}: not valid YAML: {_yaml_error_line(exc)}") from None
     except yaml.YAMLError as exc:
-        raise ConfigError(f"rig file {path}: not valid YAML ({exc})") from exc
+        raise ConfigError(f"{what} {path}: not valid YAML: {_yaml_error_line(exc)}") from None
+
+
+def load_rig_file(path: str | Path | None = None) -> RigFile:
+    """Load a rig YAML file (``None``: the bundled Miller & Howard seed rig); see :func:`load_yaml_file`."""
+    path = Path(path) if path is not None else SEED_RIG_PATH
+    data = load_yaml_file(path, "rig file")
     if not isinstance(data, Mapping):
-        raise ConfigError(f"rig file {path}: expected a mapping with 'rig' and 'estimator' sections")
+        raise ConfigError(f"rig file {path}: expected a mapping with 'rig' and 'estimator' sections, "
+                          f"got {_kind(data)}")
     _reject_unknown(data, {"rig", "estimator"}, "(top level)")
     try:
         rig = rig_from_mapping(_get(data, "rig", "(top level)"))

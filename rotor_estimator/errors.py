@@ -22,3 +22,7 @@ class FilterDivergedError(RotorEstimatorError, RuntimeError):
 
 class BagError(RotorEstimatorError):
     """A bag cannot be opened or read (missing, truncated, corrupt, wrong topics)."""
+
+
+class OutputError(RotorEstimatorError):
+    """An output file or directory cannot be written safely (a symbolic link, not a directory, no space)."""

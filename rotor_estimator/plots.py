@@ -7,6 +7,7 @@ import numpy as np
 
 from .config import COEFFICIENT_NAMES, RigConfig
 from .model import rotor_matrices
+from .safe_write import save_figure
 
 
 def _pyplot():
@@ -36,7 +37,7 @@ def coefficient_error_history(t_s: np.ndarray, history: np.ndarray, true: np.nda
     axes[1].set_xlabel("time after first processed sample (ms)")
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -57,6 +58,6 @@ def orbit_comparison(rig: RigConfig, measured_probes_m: np.ndarray, resimulated_
     ax.legend(fontsize=8)
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path

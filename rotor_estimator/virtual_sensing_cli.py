@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError, RotorEstimatorError
+from . import cli_types
+from .safe_write import save_npz
 from .flexible.description import load_rotor_description
 from .flexible.state_space import (FlexibleStateSpace, build_state_space, periodic_steady_state, simulate,
                                    station_outputs, unbalance_inputs)
@@ -51,15 +53,16 @@ def add_virtual_sensing_parser(subparsers: Any) -> argparse.ArgumentParser:
                                               "(<prefix>/<sensor name>) and keyphasor TimeReference pulses")
     p.add_argument("--sensor-topic-prefix", default="/rotor", help="sensor topics of --bag (default /rotor)")
     p.add_argument("--keyphasor-topic", default="/rotor/keyphasor", help="keyphasor topic of --bag")
-    p.add_argument("--samples", type=int, default=4096, help="synthetic samples when no --data (default 4096)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the synthetic data")
+    p.add_argument("--samples", type=cli_types.positive_int, default=4096,
+                   help="synthetic samples when no --data (default 4096)")
+    p.add_argument("--seed", type=cli_types.seed, default=0, help="random seed of the synthetic data")
     p.add_argument("--filter", choices=FILTERS, default="kf", help="kf (exact), ekf or ukf (default kf)")
     p.add_argument("--alpha", type=float, default=1e-3, help="UKF alpha (default 1e-3)")
     p.add_argument("--beta", type=float, default=2.0, help="UKF beta (default 2)")
     p.add_argument("--kappa", type=float, default=0.0, help="UKF kappa (default 0)")
-    p.add_argument("--n-modes", type=int, help="modes kept (overrides the rotor file; 0: all)")
+    p.add_argument("--n-modes", type=cli_types.non_negative_int, help="modes kept (overrides the rotor file; 0: all)")
     p.add_argument("--hide", action="append", metavar="SENSOR", help="sensor to hide (repeatable; default all)")
-    p.add_argument("--burn-in", type=int, default=0, help="samples left out of the statistics")
+    p.add_argument("--burn-in", type=cli_types.non_negative_int, default=0, help="samples left out of the statistics")
     p.add_argument("--estimates-out", type=Path, help="write station estimates (mean, std, ellipse) to NPZ")
     p.add_argument("--station", action="append", metavar="NAME[=AXIAL_M]",
                    help="station to estimate (repeatable): a station or sensor of the rotor file, or name=axial "
@@ -83,8 +86,9 @@ def add_bench_parser(bench_subparsers: Any) -> argparse.ArgumentParser:
         description="Time a UKF with 150 states and 8 observations over 8192 samples (Neisi et al.: more "
                     "than eight hours), the exact Kalman filter on the same model, their agreement, and "
                     "the leave-one-station-out coverage.")
-    p.add_argument("--samples", type=int, default=8192, help="samples filtered per run (default 8192)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--samples", type=cli_types.positive_int, default=8192,
+                   help="samples filtered per run (default 8192)")
+    p.add_argument("--seed", type=cli_types.seed, default=0)
     p.add_argument("--alpha", type=float, default=0.01, help="UKF alpha (Table 5 of the paper: 0.01)")
     p.add_argument("--beta", type=float, default=2.0, help="UKF beta (default 2)")
     p.add_argument("--kappa", type=float, default=0.0, help="UKF kappa (default 0)")
@@ -94,33 +98,99 @@ def add_bench_parser(bench_subparsers: Any) -> argparse.ArgumentParser:
 
 
 # --------------------------------------------------------------------------- data
+#: Largest array read from ``--data`` (elements); 10^8 samples is 83 min at 20 kHz.
+MAX_NPZ_ELEMENTS = 100_000_000
+
+
+def read_npz_arrays(path: Path, names: Any, flag: str = "--data") -> dict[str, np.ndarray]:
+    """The members ``names`` (those present) of an NPZ archive, as real-number arrays.
+
+    Refuses with one :class:`InputError` line: a directory, a ``.npy`` or other non-NPZ file, a
+    truncated or corrupt archive, an object (pickled) array (never unpickled), a non-numeric or
+    complex dtype and an array over :data:`MAX_NPZ_ELEMENTS` (checked from its header, before
+    it is decompressed)."""
+    import zipfile
+    import zlib
+
+    path = Path(path)
+    where = f"{flag} {path}"
+    if path.is_dir():
+        raise InputError(f"{where}: is a directory; expected an NPZ file (numpy.savez)")
+    try:
+        with open(path, "rb") as fh:
+            magic = fh.read(6)
+    except OSError as exc:
+        raise InputError(f"{where}: cannot be read ({exc.strerror or exc})") from None
+    if magic.startswith(b"\x93NUMPY"):
+        raise InputError(f"{where}: is a single .npy array, not an NPZ archive; save the channels with "
+                         f"numpy.savez(path, t=..., <channel>=...)")
+    if not magic.startswith(b"PK"):
+        raise InputError(f"{where}: not an NPZ archive (numpy.savez): it does not start like a zip file")
+    bad = (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error, NotImplementedError)
+    out: dict[str, np.ndarray] = {}
+    try:
+        archive = zipfile.ZipFile(path)
+    except bad as exc:
+        raise InputError(f"{where}: truncated or corrupt NPZ archive ({exc})") from None
+    with archive:
+        members = {m[:-4]: m for m in archive.namelist() if m.endswith(".npy")}
+        for name in names:
+            if name not in members:
+                continue
+            what = f"{where}: array {name!r}"
+            try:
+                with archive.open(members[name]) as fh:
+                    version = np.lib.format.read_magic(fh)
+                    read_header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                                   else np.lib.format.read_array_header_2_0)
+                    shape, _, dtype = read_header(fh)
+                    if dtype.hasobject:
+                        raise InputError(f"{what} holds Python objects (dtype=object); --data reads numeric "
+                                         f"arrays only and never unpickles")
+                    if dtype.kind not in "iuf":
+                        raise InputError(f"{what} has dtype {dtype}; expected real numbers (integer or float)")
+                    if int(np.prod(shape, dtype=np.float64)) > MAX_NPZ_ELEMENTS:
+                        raise InputError(f"{what} has shape {shape}: more than {MAX_NPZ_ELEMENTS} values")
+                with archive.open(members[name]) as fh:
+                    arr = np.lib.format.read_array(fh, allow_pickle=False)
+            except InputError:
+                raise
+            except bad as exc:
+                raise InputError(f"{what} cannot be read: truncated or corrupt ({exc})") from None
+            out[name] = np.asarray(arr, dtype=float)
+        out["__members__"] = np.asarray(sorted(members), dtype=str)
+    return out
+
+
 def load_npz_channels(path: Path, ss: FlexibleStateSpace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t, z (N, p), u (N, 2)) from an NPZ file; channels in the rotor file's order
-    (a channel missing from the file becomes NaN and is never used)."""
-    try:
-        data = np.load(path)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"--data {path}: cannot be read as NPZ ({exc})") from exc
+    (a channel missing from the file becomes NaN and is never used; NaN or inf samples are
+    rejected and counted by the filter). Bad files: see :func:`read_npz_arrays`."""
+    data = read_npz_arrays(path, ("t", *ss.channel_names, "shaft_angle_rad"))
+    files = data.pop("__members__").tolist()
     if "t" not in data:
-        raise InputError(f"--data {path}: needs an array 't' (s); has {sorted(data.files)}")
-    t = np.asarray(data["t"], dtype=float)
-    if t.ndim != 1 or len(t) < 2 or np.any(np.diff(t) <= 0):
-        raise InputError(f"--data {path}: 't' must be 1-D and strictly increasing")
+        raise InputError(f"--data {path}: needs an array 't' (s); has {files}")
+    t = data["t"]
+    if t.ndim != 1 or len(t) < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise InputError(f"--data {path}: 't' must be 1-D, finite and strictly increasing (s)")
     dt = float(np.median(np.diff(t)))
     if abs(dt - ss.dt_s) > 1e-3 * ss.dt_s:
         raise InputError(f"--data {path}: sample period {dt:g} s differs from the rotor file's "
                          f"operating.sample_rate_hz ({1 / ss.dt_s:g} Hz); resample or fix the rotor file")
     present = [c for c in ss.channel_names if c in data]
     if not present:
-        raise InputError(f"--data {path}: none of the channels {list(ss.channel_names)} found")
+        raise InputError(f"--data {path}: none of the channels {list(ss.channel_names)} found; has {files}")
     z = np.full((len(t), len(ss.channel_names)), np.nan)
     for j, c in enumerate(ss.channel_names):
         if c in data:
-            arr = np.asarray(data[c], dtype=float)
+            arr = data[c]
             if arr.shape != t.shape:
                 raise InputError(f"--data {path}: channel {c!r} has shape {arr.shape}, 't' has {t.shape}")
             z[:, j] = arr
-    angle = np.asarray(data["shaft_angle_rad"], float) if "shaft_angle_rad" in data else None
+    angle = data.get("shaft_angle_rad")
+    if angle is not None and (angle.shape != t.shape or not np.all(np.isfinite(angle))):
+        raise InputError(f"--data {path}: 'shaft_angle_rad' must be finite with the shape of 't' {t.shape}, "
+                         f"got {angle.shape}")
     return t, z, unbalance_inputs(ss, t - t[0], angle)
 
 
@@ -211,7 +281,7 @@ def run_virtual_sensing(args: argparse.Namespace) -> int:
 
             write_estimates_bag(args.out_bag, estimates, stamps, report=report, hardware_id=rotor.name)
     except RotorEstimatorError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"rotor-estimator: error: {exc}", file=sys.stderr)
         return 2
     flagged = any(not r.calibrated for r in report.rows)
     if args.json:
@@ -255,7 +325,7 @@ def _write_estimates(path: Path, estimates: list, confidence: float) -> None:
         arrays[f"{e.name}_ellipse_semi_major_m"] = ell[:, 0]
         arrays[f"{e.name}_ellipse_semi_minor_m"] = ell[:, 1]
         arrays[f"{e.name}_ellipse_angle_rad"] = ell[:, 2]
-    np.savez(path, **arrays)
+    save_npz(path, **arrays)  # never through a symbolic link (safe_write)
 
 
 # --------------------------------------------------------------------------- bench
@@ -301,7 +371,7 @@ def run_bench(args: argparse.Namespace) -> int:
     try:
         res = bench_virtual_sensing(args.samples, args.seed, args.alpha, args.beta, args.kappa)
     except RotorEstimatorError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"rotor-estimator: error: {exc}", file=sys.stderr)
         return 2
     table = res.pop("_table")
     if args.json:

@@ -19,6 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .safe_write import output_directory, save_figure, write_text
 from .virtual_sensing import HiddenTrace, LeaveOneOutReport, StationEstimate, confidence_ellipse
 
 __all__ = ["plot_station_orbit", "plot_hidden_trace", "write_report"]
@@ -69,7 +70,7 @@ def plot_station_orbit(est: StationEstimate, path: str | Path, *, samples_per_re
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper right")
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     return path
 
 
@@ -96,7 +97,7 @@ def plot_hidden_trace(trace: HiddenTrace, t_s: np.ndarray, path: str | Path, *, 
     axes[0].legend(fontsize=7, loc="upper right", ncol=3)
     axes[-1].set_xlabel("time (s)")
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     return path
 
 
@@ -105,8 +106,7 @@ def write_report(directory: str | Path, estimates: Sequence[StationEstimate], re
                  truth: dict[str, np.ndarray] | None = None) -> list[Path]:
     """Write every figure (and ``leave_one_out.txt``) into ``directory``; return the paths.
     ``truth``: optional ``{station name: (N, 2) true displacement}``."""
-    out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_directory(directory, "--report")
     spr = sample_rate_hz * 2 * math.pi / speed_rad_s if speed_rad_s > 0 else 256.0
     paths = [plot_station_orbit(e, out / f"orbit_{e.name}.png", samples_per_rev=spr, confidence=confidence,
                                 truth_xy_m=None if truth is None else truth.get(e.name))
@@ -116,6 +116,6 @@ def write_report(directory: str | Path, estimates: Sequence[StationEstimate], re
             cov = [r.coverage_measured for r in report.rows if r.sensor == tr.sensor]
             paths.append(plot_hidden_trace(tr, t_s, out / f"loo_{tr.sensor}.png", samples_per_rev=spr,
                                            confidence=confidence, coverage=cov))
-        (out / "leave_one_out.txt").write_text(report.format_table() + "\n")
+        write_text(out / "leave_one_out.txt", report.format_table() + "\n")
         paths.append(out / "leave_one_out.txt")
     return paths

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import cli_types
 from ..errors import BagError, InputError
 from ..identification.identifiability import NOT_DETERMINED, WEAK
 
@@ -322,7 +323,7 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("--impacts", type=int, default=None,
                    help="replace the scenario's impacts by N hammer pulses (515 N, 50 us) alternating y and x, "
                         "evenly spaced over the recorded time")
-    p.add_argument("--seed", type=int, default=1, help="noise seed (default 1)")
+    p.add_argument("--seed", type=cli_types.seed, default=1, help="noise seed (default 1)")
     p.add_argument("--block-size", type=int, default=200, help="samples per probe message (default 200)")
     p.add_argument("--out", type=Path, required=True, help="new bag directory")
     p.set_defaults(func=cmd_simulate)

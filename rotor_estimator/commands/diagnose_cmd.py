@@ -10,6 +10,8 @@ import argparse
 import json
 from pathlib import Path
 
+from .. import cli_types
+
 
 def _load(path: Path, salvage: bool = False):
     from ..errors import InputError
@@ -76,14 +78,14 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--rig", type=Path, required=True, help="rig YAML (bearing coefficients are estimated)")
     p.add_argument("--report", metavar="DIR", default=None, help="write report.md, summary.json and PNGs to DIR")
     p.add_argument("--json", action="store_true", help="print the JSON summary")
-    p.add_argument("--passes", type=int, default=2, help="EKF passes of the nominal fit (default 2)")
+    p.add_argument("--passes", type=cli_types.passes, default=2, help="EKF passes of the nominal fit (default 2)")
     p.set_defaults(func=cmd_diagnose)
 
 
 def add_bench_parsers(bench_subparsers) -> None:
     b = bench_subparsers.add_parser("diagnosis", help="blind withheld-effect benchmark of `diagnose`")
     b.add_argument("--cases", type=int, default=36, help="blind cases to draw (default 36)")
-    b.add_argument("--seed", type=int, default=2024)
+    b.add_argument("--seed", type=cli_types.seed, default=2024)
     b.add_argument("--out", default=None, help="keep the blind set, labels and results here")
     b.add_argument("--jobs", type=int, default=2, help="cases diagnosed at once, one process each (default 2)")
     b.add_argument("--no-ross", action="store_true", help="leave out the ROSS flexible-shaft cases")

@@ -9,6 +9,8 @@ import json
 import sys
 from pathlib import Path
 
+from .. import cli_types
+
 
 def _bar(total: int, desc: str, enabled: bool):
     from tqdm import tqdm
@@ -159,7 +161,7 @@ def add_parsers(subparsers) -> None:
     i.add_argument("--salvage", action="store_true", help="use the intact part of a damaged bag (the messages lost are counted and reported on stderr); without it a damaged bag is an error")
     src.add_argument("--simulate", metavar="SCENARIO",
                      help="simulate a benchmark scenario: imbalance+impact, imbalance, cd0.5, cd2, 5imp")
-    i.add_argument("--seed", type=int, default=1)
+    i.add_argument("--seed", type=cli_types.seed, default=1)
     i.add_argument("--rig", type=Path, default=None)
     i.add_argument("--method", default="auto", help="auto (batch-ml), batch-ml, ekf+rts, ekf, ukf")
     i.add_argument("--unknown-imbalance", action="store_true", help="estimate the imbalance jointly")
@@ -176,7 +178,7 @@ def add_bench_parsers(bench_subparsers) -> None:
     b = bench_subparsers.add_parser("identification", help="EKF, UKF, EKF+RTS and batch ML against the CRLB on "
                                                            "the seed cases, coast-downs and the 5-impact test")
     b.add_argument("--runs", type=int, default=20, help="seeded runs per scenario (default 20)")
-    b.add_argument("--seed", type=int, default=1, help="first noise seed")
+    b.add_argument("--seed", type=cli_types.seed, default=1, help="first noise seed")
     b.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     b.add_argument("--methods", nargs="+", default=None, help="subset of: ekf ukf ekf+rts batch-ml")
     b.add_argument("--only", nargs="+", default=None, help="scenarios whose name contains one of these words")

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..safe_write import output_directory, save_figure, write_text
 from .api import Diagnosis
 from .residuals import CHANNELS
 
@@ -49,7 +50,7 @@ def plot_spectra(d: Diagnosis, path: Path) -> None:
     axes[0, 0].legend()
     fig.suptitle("Residual spectra before / after the winning effect")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -74,7 +75,7 @@ def plot_orbits(d: Diagnosis, path: Path) -> None:
     axes[0].legend(fontsize=8)
     fig.suptitle("Orbits, last two revolutions: measured vs model")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -90,7 +91,7 @@ def plot_ranking(d: Diagnosis, path: Path) -> None:
     ax.set_xlabel("evidence: BIC(nominal) - BIC(nominal + effect)")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -172,12 +173,11 @@ def markdown(d: Diagnosis, summary: dict) -> str:
 
 def write_report(d: Diagnosis, out_dir: str | Path) -> dict:
     """Write ``report.md``, ``summary.json`` and the PNG figures into ``out_dir``; return the summary."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_directory(out_dir, "--report")
     summary = d.summary()
     plot_spectra(d, out / "spectra.png")
     plot_orbits(d, out / "orbits.png")
     plot_ranking(d, out / "ranking.png")
-    (out / "summary.json").write_text(json.dumps(summary, indent=1))
-    (out / "report.md").write_text(markdown(d, summary))
+    write_text(out / "summary.json", json.dumps(summary, indent=1))
+    write_text(out / "report.md", markdown(d, summary))
     return summary

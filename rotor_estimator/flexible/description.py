@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-from ..config import _get, _number, _reject_unknown
+from ..config import _get, _number, _reject_unknown, load_yaml_file
 from ..errors import ConfigError
 
 ROTORS_DIR = Path(__file__).resolve().parent.parent / "rotors"
@@ -341,17 +341,10 @@ def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDes
 
 def load_rotor_description(path: str | Path) -> RotorDescription:
     """Load a rotor YAML file; a bare name (e.g. ``'three_probe_rig'``) loads a bundled example."""
-    import yaml
-
     p = Path(path)
     if not p.exists() and (ROTORS_DIR / f"{p.name}.yaml").exists():
         p = ROTORS_DIR / f"{p.name}.yaml"
-    try:
-        data = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ConfigError(f"rotor file {p}: cannot be read ({exc.strerror or exc})") from exc
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"rotor file {p}: not valid YAML ({exc})") from exc
+    data = load_yaml_file(p, "rotor file")  # size, UTF-8, duplicate-key and alias limits
     if not isinstance(data, Mapping) or "rotor" not in data:
         raise ConfigError(f"rotor file {p}: expected a mapping with a top-level 'rotor' section")
     _reject_unknown(data, {"rotor"}, "(top level)")

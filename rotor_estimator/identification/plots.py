@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from .speed_dependent import RPM, SpeedTable
+from ..safe_write import output_directory, save_figure
 
 
 def coefficients_vs_speed(tab: SpeedTable, path: str | Path, *, truth: SpeedTable | None = None,
@@ -32,8 +33,7 @@ def coefficients_vs_speed(tab: SpeedTable, path: str | Path, *, truth: SpeedTabl
     axes[0, 0].legend(fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    path = output_directory(Path(path).parent, "--plots") / Path(path).name
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path

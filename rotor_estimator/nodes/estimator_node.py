@@ -25,7 +25,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, qos_profile_sensor_data
 
 import msg_adapters as ma
 
-from .params import ParamSpec, descriptor, parameters_yaml
+from .params import ParamSpec, declare_parameters, parameters_yaml, warn_if_numba_missing
 from .spin import run_node
 from ..alignment import AlignmentConfig
 from ..config import BearingCoefficients, RigFile, load_rig_file
@@ -159,12 +159,8 @@ class EstimatorNode(Node):
 
     def __init__(self, node_name: str = "rotor_estimator", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        for spec in PARAMETERS:
-            self.declare_parameter(spec.name, spec.default, descriptor(spec))
-        values = {}
-        for spec in PARAMETERS:
-            p = self.get_parameter_or(spec.name, None)
-            values[spec.name] = None if p is None or p.type_ == Parameter.Type.NOT_SET else p.value
+        warn_if_numba_missing(self.get_logger())
+        values = declare_parameters(self, PARAMETERS)  # ints for doubles accepted; bad values: one line
         self.pipeline, self.rig_file, self.topics = pipeline_from_parameters(values)
         self.pipeline.warm_up()
         self.values = values

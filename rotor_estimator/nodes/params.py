@@ -1,4 +1,5 @@
-"""ROS parameters declared in one place per node: a spec per parameter and its descriptor."""
+"""ROS parameters declared in one place per node: a spec per parameter, its descriptor, the
+declaration (with integer-for-double coercion and one-line errors) and the documented file."""
 from __future__ import annotations
 
 import json
@@ -7,7 +8,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.parameter import Parameter
+
+from ..errors import ConfigError
 
 
 @dataclass(frozen=True)
@@ -39,11 +43,87 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
     return d
 
 
+def _type_of(spec: ParamSpec) -> Parameter.Type:
+    if isinstance(spec.default, Parameter.Type):
+        return spec.default
+    return Parameter.Type.from_parameter_value(spec.default)
+
+
+_TYPE_WORDS = {
+    Parameter.Type.BOOL: "a boolean (true or false)", Parameter.Type.INTEGER: "an integer",
+    Parameter.Type.DOUBLE: "a number", Parameter.Type.STRING: "a string",
+    Parameter.Type.DOUBLE_ARRAY: "a list of numbers", Parameter.Type.INTEGER_ARRAY: "a list of integers",
+    Parameter.Type.STRING_ARRAY: "a list of strings", Parameter.Type.BOOL_ARRAY: "a list of booleans",
+    Parameter.Type.BYTE_ARRAY: "a list of bytes", Parameter.Type.NOT_SET: "nothing",
+}
+
+
+def _coerce_integer_override(node: Any, spec: ParamSpec) -> None:
+    """``-p publish_rate_hz:=5`` (or ``publish_rate_hz: 5`` in a params file) reaches rclpy as an
+    INTEGER, which a statically typed DOUBLE parameter refuses with a traceback: an integer (list)
+    given for a double (list) is taken as that number. rclpy offers no public hook before
+    declaration, so this edits the node's override table (``Node._parameter_overrides``, present
+    from Foxy to Kilted); without it the type error is still reported in one line."""
+    overrides = getattr(node, "_parameter_overrides", None)
+    if not isinstance(overrides, dict) or spec.name not in overrides:
+        return
+    given = overrides[spec.name]
+    want = _type_of(spec)
+    if want == Parameter.Type.DOUBLE and given.type_ == Parameter.Type.INTEGER:
+        overrides[spec.name] = Parameter(spec.name, Parameter.Type.DOUBLE, float(given.value))
+    elif want == Parameter.Type.DOUBLE_ARRAY and given.type_ == Parameter.Type.INTEGER_ARRAY:
+        overrides[spec.name] = Parameter(spec.name, Parameter.Type.DOUBLE_ARRAY, [float(v) for v in given.value])
+
+
+def declare_parameters(node: Any, specs: tuple[ParamSpec, ...]) -> dict[str, Any]:
+    """Declare every spec on ``node`` (read-only, with its range) and return ``{name: value}``
+    (``None`` for a parameter without default left unset).
+
+    An integer given for a double parameter is accepted as that number; a value of the wrong type
+    or outside the range raises :class:`~rotor_estimator.errors.ConfigError` naming the parameter,
+    what it expects and what it got (the node's ``main`` prints it as one line and exits 1)."""
+    values: dict[str, Any] = {}
+    for spec in specs:
+        _coerce_integer_override(node, spec)
+        try:
+            node.declare_parameter(spec.name, spec.default, descriptor(spec))
+        except InvalidParameterTypeException:
+            given = node._parameter_overrides.get(spec.name) if hasattr(node, "_parameter_overrides") else None
+            got = f", got {_TYPE_WORDS.get(given.type_, given.type_.name.lower())} {given.value!r}" if given else ""
+            raise ConfigError(f"parameter {spec.name}: expected {_TYPE_WORDS.get(_type_of(spec), 'another type')}"
+                              f"{got} ({spec.description})") from None
+        except InvalidParameterValueException:
+            given = node._parameter_overrides.get(spec.name) if hasattr(node, "_parameter_overrides") else None
+            got = f", got {given.value!r}" if given is not None else ""
+            span = f"from {spec.low:g} to {spec.high:g}" if spec.low is not None else "a valid value"
+            raise ConfigError(f"parameter {spec.name}: must be {span}{got} ({spec.description})") from None
+        p = node.get_parameter_or(spec.name, None)
+        values[spec.name] = None if p is None or p.type_ == Parameter.Type.NOT_SET else p.value
+    return values
+
+
+def warn_if_numba_missing(logger: Any) -> bool:
+    """Log a warning when numba cannot be imported (the filter then runs as plain Python, far slower
+    than real time at 20 kHz); True if it warned. Call once at node start."""
+    from .. import _jit
+
+    if _jit.HAVE_NUMBA:
+        return False
+    logger.warning("numba is not installed: the EKF kernels run as plain Python, far slower than real time "
+                   "at 20 kHz. Install it (rosdep key python3-numba, or pip install numba) and restart")
+    return True
+
+
 def parameters_yaml(node_name: str, specs: tuple[ParamSpec, ...], header: str) -> str:
     """A ``--params-file`` documenting every parameter: description, unit, range and default
-    (robot_localization style). Generated from the specs, so it cannot disagree with them."""
+    (robot_localization style). Generated from the specs, so it cannot disagree with them.
+
+    Keyed ``/**:`` (any node name, any namespace), so the same file works for a renamed or
+    namespaced node (``-r __node:=...``, ``-r __ns:=...``, a launch file's ``name=``/``namespace=``);
+    ``node_name`` appears in a comment."""
     lines = [f"# {h}" if h else "#" for h in header.splitlines()]
-    lines += [f"{node_name}:", "  ros__parameters:"]
+    lines += [f"# Keyed /** (every node name and namespace): works for {node_name} renamed or namespaced.",
+              "/**:", "  ros__parameters:"]
     for spec in specs:
         text = spec.description
         if spec.choices:

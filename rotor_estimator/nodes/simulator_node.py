@@ -22,12 +22,12 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 import msg_adapters as ma
 
+from .params import ParamSpec, declare_parameters
 from .spin import run_node
 from ..config import load_rig_file
 from ..errors import ConfigError
@@ -70,13 +70,9 @@ _PARAMS: tuple[tuple[str, Any, str, float | None, float | None], ...] = (
 )
 
 
-def _descriptor(default: Any, text: str, low: Any, high: Any) -> ParameterDescriptor:
-    d = ParameterDescriptor(description=text, read_only=True)
-    if isinstance(default, float):
-        d.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
-    elif isinstance(default, int) and not isinstance(default, bool):
-        d.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
-    return d
+#: The same table as :class:`~rotor_estimator.nodes.params.ParamSpec` records (declared read-only).
+PARAMETERS: tuple[ParamSpec, ...] = tuple(ParamSpec(name, default, text, low, high)
+                                          for name, default, text, low, high in _PARAMS)
 
 
 def recording_events(rec: RigRecording, factory: ma.MessageFactory, block_size: int,
@@ -163,9 +159,7 @@ class SimulatorNode(Node):
 
     def __init__(self, node_name: str = "rotor_simulator", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        for name, default, text, low, high in _PARAMS:
-            self.declare_parameter(name, default, _descriptor(default, text, low, high))
-        v = {name: self.get_parameter(name).value for name, *_ in _PARAMS}
+        v = declare_parameters(self, PARAMETERS)  # ints for doubles accepted; bad values: one line
         self.topics = ma.InputTopics(v["probe1_topic"], v["probe2_topic"], v["keyphasor_topic"], v["impact_topic"])
         fac = ma.RclpyFactory()
         if v["probe_message_type"] not in ma.PROBE_TYPES:

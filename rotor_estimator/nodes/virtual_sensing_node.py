@@ -27,7 +27,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, qos_profile_sensor_data
 
 import msg_adapters as ma
 
-from .params import ParamSpec, descriptor
+from .params import ParamSpec, declare_parameters
 from .spin import run_node
 from ..errors import ConfigError, InputError
 from ..flexible import build_state_space, load_rotor_description
@@ -108,12 +108,7 @@ class VirtualSensingNode(Node):
 
     def __init__(self, node_name: str = "virtual_sensing", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        values = {}
-        for spec in PARAMETERS:
-            self.declare_parameter(spec.name, spec.default, descriptor(spec))
-        for spec in PARAMETERS:
-            p = self.get_parameter_or(spec.name, None)
-            values[spec.name] = None if p is None or p.type_ == Parameter.Type.NOT_SET else p.value
+        values = declare_parameters(self, PARAMETERS)  # ints for doubles accepted; bad values: one line
         self.values = values
         self.pipeline = pipeline_from_parameters(values)
         rotor = self.pipeline.ss.rotor

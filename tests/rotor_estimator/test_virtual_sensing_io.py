@@ -237,3 +237,91 @@ def test_report_directory_has_orbit_and_leave_one_out_pngs_and_out_bag_has_stati
     assert len(msgs) == 1024 and msgs[7].stamp_ns == int(np.rint(sim.t[7] * 1e9))
     assert np.array_equal([m.mean[0] for m in msgs], est["midspan_displacement_x"])
     assert np.array_equal([m.std[5] for m in msgs], est["midspan_acceleration_y_std"])
+
+
+# --------------------------------------------------------------------------- hostile --data files
+def _hostile_npz(d: Path, good: dict) -> dict[str, tuple[Path, str]]:
+    """name -> (file, the refusal it must give)."""
+    np.savez(d / "ok.npz", **good)
+    raw = (d / "ok.npz").read_bytes()
+    (d / "truncated.npz").write_bytes(raw[:len(raw) // 2])
+    np.savez_compressed(d / "okc.npz", **good)
+    flipped = bytearray((d / "okc.npz").read_bytes())
+    flipped[len(flipped) // 3] ^= 0xFF
+    (d / "corrupt.npz").write_bytes(bytes(flipped))
+    np.save(d / "single.npy", good["t"])
+    (d / "renamed.npz").write_bytes((d / "single.npy").read_bytes())
+    np.savez(d / "object.npz", **{**good, "probe1_x": np.array([{"x": 1}] * len(good["t"]), dtype=object)})
+    np.savez(d / "strings.npz", **{**good, "t": good["t"].astype(str)})
+    np.savez(d / "complex.npz", **{**good, "t": good["t"].astype(complex)})
+    np.savez(d / "nan_t.npz", **{**good, "t": np.where(np.arange(len(good["t"])) == 5, np.nan, good["t"])})
+    np.savez(d / "angle.npz", **good, shaft_angle_rad=np.zeros(3))
+    (d / "text.npz").write_text("t,probe1_x\n0,1\n")
+    (d / "folder.npz").mkdir()
+    return {
+        "truncated": (d / "truncated.npz", "truncated or corrupt NPZ archive"),
+        "corrupt member": (d / "corrupt.npz", r"array '\w+' cannot be read: truncated or corrupt"),
+        ".npy renamed": (d / "renamed.npz", "is a single .npy array, not an NPZ archive"),
+        "object array": (d / "object.npz", r"array 'probe1_x' holds Python objects \(dtype=object\)"),
+        "string t": (d / "strings.npz", r"array 't' has dtype <U\d+; expected real numbers"),
+        "complex t": (d / "complex.npz", "array 't' has dtype complex128; expected real numbers"),
+        "NaN in t": (d / "nan_t.npz", "'t' must be 1-D, finite and strictly increasing"),
+        "short angle": (d / "angle.npz", "'shaft_angle_rad' must be finite with the shape of 't'"),
+        "not a zip": (d / "text.npz", r"not an NPZ archive \(numpy.savez\)"),
+        "directory": (d / "folder.npz", "is a directory; expected an NPZ file"),
+    }
+
+
+@pytest.fixture(scope="module")
+def hostile(tmp_path_factory):
+    rotor = load_rotor_description("three_probe_rig")
+    ss = build_state_space(rotor)
+    sim = simulate(ss, 64, seed=3)
+    good = {"t": sim.t, **{c: sim.z[:, j] for j, c in enumerate(ss.channel_names)}}
+    return ss, _hostile_npz(tmp_path_factory.mktemp("hostile"), good)
+
+
+CASES = ["truncated", "corrupt member", ".npy renamed", "object array", "string t", "complex t", "NaN in t",
+         "short angle", "not a zip", "directory"]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_hostile_npz_is_refused_with_an_input_error_naming_the_cause(hostile, case):
+    """Each broken --data file (truncated, corrupt member, renamed .npy, object array, non-numeric
+    or complex or non-finite time, wrong-length shaft angle, not a zip, a directory) raises one
+    InputError line naming the cause, never a numpy/zipfile traceback."""
+    from rotor_estimator.virtual_sensing_cli import load_npz_channels
+
+    ss, files = hostile
+    path, message = files[case]
+    with pytest.raises(InputError, match=message) as info:
+        load_npz_channels(path, ss)
+    assert "\n" not in str(info.value) and str(path) in str(info.value)
+
+
+def test_object_arrays_are_never_unpickled(tmp_path, monkeypatch):
+    """An object array in --data is refused from its header: pickle.loads is never called."""
+    import pickle
+
+    from rotor_estimator.virtual_sensing_cli import read_npz_arrays
+
+    np.savez(tmp_path / "o.npz", t=np.arange(3.0), x=np.array([1, "a", None], dtype=object))
+    calls = []
+    monkeypatch.setattr(pickle, "load", lambda *a, **k: calls.append(a))
+    monkeypatch.setattr(pickle, "loads", lambda *a, **k: calls.append(a))
+    with pytest.raises(InputError, match="holds Python objects"):
+        read_npz_arrays(tmp_path / "o.npz", ["t", "x"])
+    assert calls == []
+
+
+@pytest.mark.parametrize("case", ["truncated", "object array", ".npy renamed"])
+def test_cli_exits_2_with_one_error_line_on_hostile_npz(hostile, case, capsys):
+    """`rotor-estimator virtual-sensing --data BAD` prints one 'rotor-estimator: error: ...' line
+    on stderr and exits 2."""
+    from rotor_estimator.cli import main
+
+    _, files = hostile
+    path, message = files[case]
+    assert main(["virtual-sensing", "--rotor", "three_probe_rig", "--data", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("rotor-estimator: error: --data ")
