@@ -175,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except RotorEstimatorError as exc:
         print(f"rotor-estimator: error: {exc}", file=sys.stderr)
-        return 2
+        return exc.exit_code
     except KeyboardInterrupt:
         print("rotor-estimator: interrupted", file=sys.stderr)
         return 130

@@ -2,7 +2,9 @@
 
 
 class RotorEstimatorError(Exception):
-    """Base class of every error this package raises on purpose."""
+    """Base class of every error this package raises on purpose (the CLI exits with ``exit_code``)."""
+
+    exit_code = 2
 
 
 class ConfigError(RotorEstimatorError, ValueError):
@@ -18,6 +20,12 @@ class InputError(RotorEstimatorError, ValueError):
 
 class FilterDivergedError(RotorEstimatorError, RuntimeError):
     """The filter's covariance lost positive definiteness or its state became non-finite."""
+
+
+class NoDataError(InputError):
+    """The input was read but no sample could be used (no estimate exists): exit code 3."""
+
+    exit_code = 3
 
 
 class BagError(RotorEstimatorError):

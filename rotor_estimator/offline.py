@@ -26,15 +26,18 @@ class ShaftInputs:
     valid: np.ndarray
 
 
-def shaft_inputs_from_recording(recording: RigRecording, tach_config=None) -> ShaftInputs:
-    """Shaft state at every sample from the keyphasor pulses (centered, offline fit)."""
-    from .tachometer import TachometerConfig, shaft_states_from_pulses
+def shaft_inputs_from_recording(recording: RigRecording, tach_config=None, *,
+                                running_speed_rad_s: float = 0.0) -> ShaftInputs:
+    """Shaft state at every sample from the keyphasor pulses (centered, offline fit); the tracker's
+    speed limit follows ``running_speed_rad_s`` (see :func:`tachometer.max_speed_for_rig`)."""
+    from .tachometer import TachometerConfig, max_speed_for_rig, shaft_states_from_pulses
 
     if recording.pulse_stamps_ns.size < 2:
         raise InputError("the recording has fewer than 2 keyphasor pulses: the shaft angle, which phases the "
                          "imbalance force, cannot be tracked")
     states, _pulse_counters = shaft_states_from_pulses(recording.pulse_stamps_ns, recording.stamps_ns,
-                                                       tach_config or TachometerConfig())
+                                                       tach_config or TachometerConfig(
+                                                           max_speed_rad_s=max_speed_for_rig(running_speed_rad_s)))
     return ShaftInputs(angle_rad=np.asarray(states.angle_rad, dtype=float),
                        speed_rad_s=np.asarray(states.speed_rad_s, dtype=float),
                        accel_rad_s2=np.asarray(states.accel_rad_s2, dtype=float),
@@ -64,7 +67,7 @@ def estimate(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     """Filter ``recording`` ``passes`` times (the paper's multi-pass use: each pass starts from
     the previous pass's final coefficients with the configured P0)."""
     passes = config.passes if passes is None else passes
-    shaft = shaft or shaft_inputs_from_recording(recording)
+    shaft = shaft or shaft_inputs_from_recording(recording, running_speed_rad_s=rig.speed_rad_s)
     t = recording.time_s()
     ekf = StreamingEKF(rig, config, initial_coefficients=initial_coefficients, imbalance_scale=imbalance_scale)
     skip = ~shaft.valid

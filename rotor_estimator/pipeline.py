@@ -45,12 +45,13 @@ from .config import COEFFICIENT_NAMES, EstimatorConfig, RigConfig
 from .ekf import StreamingEKF, initial_covariance
 from .identification.identifiability import IdentifiabilityReport, report_from_filter
 from .errors import ConfigError, InputError
-from .tachometer import ShaftAngleTracker, TachometerConfig
+from .tachometer import ShaftAngleTracker, TachometerConfig, max_speed_for_rig
 
 __all__ = ["PipelineOptions", "PipelineStatus", "Output", "Accounting", "EstimatorPipeline",
            "EKF_REJECTIONS", "ALIGNER_REJECTIONS", "LEVEL_OK", "LEVEL_WARN", "LEVEL_ERROR"]
 
 LEVEL_OK, LEVEL_WARN, LEVEL_ERROR = 0, 1, 2
+REPEATED_DIVERGENCE = 3  # recoveries from which the status stays ERROR for the rest of the run
 #: Rejections after alignment; each removes one 4-channel sample (one reading of each plane).
 EKF_REJECTIONS: tuple[str, ...] = ("no_shaft_reference", "gated_outlier", "numerical_failure", "non_finite")
 #: Rejections in the aligner, counted per plane (``late_plane1`` ...).
@@ -274,7 +275,8 @@ class EstimatorPipeline:
             raise ConfigError(f"pipeline.publish_period_s: must be > 0 and <= 3600 s, got {publish_period_s!r}")
         self.rig = rig
         self.estimator_config = estimator_config
-        self.tach_config = tach_config if tach_config is not None else TachometerConfig(fit_history=1024)
+        self.tach_config = tach_config if tach_config is not None else TachometerConfig(
+            fit_history=1024, max_speed_rad_s=max_speed_for_rig(rig.speed_rad_s))
         self.align_config = align_config if align_config is not None else AlignmentConfig(
             sample_rate_hz=rig.sample_rate_hz)
         self.options = options if options is not None else PipelineOptions()
@@ -640,10 +642,18 @@ class EstimatorPipeline:
             self._lag_s = max(self._lag_s, pulse_lag_s)
         self._last_level_counts = now
         level, problems = LEVEL_OK, []
-        if delta["recoveries"] > 0:
+        recoveries = now["recoveries"]
+        if delta["recoveries"] > 0 or recoveries >= REPEATED_DIVERGENCE:
+            # ERROR while it happens and for good once it repeats: not judged on the last interval alone
             level = LEVEL_ERROR
-            problems.append(f"filter diverged and was restored from its last healthy state "
-                            f"({now['recoveries']} recoveries)")
+            problems.append(f"filter diverged {recoveries} time{'s' if recoveries != 1 else ''} and was restored "
+                            f"from its last healthy state; the estimate is not trustworthy"
+                            + (": check the rig file against the rig (run `diagnose`)"
+                               if recoveries >= REPEATED_DIVERGENCE else ""))
+        elif recoveries:
+            level = max(level, LEVEL_WARN)
+            problems.append(f"filter diverged {recoveries} time{'s' if recoveries != 1 else ''} earlier "
+                            f"(restored)")
         falling_behind = self._falling_behind or pulses_behind
         if falling_behind:
             level = max(level, LEVEL_WARN)
@@ -654,12 +664,14 @@ class EstimatorPipeline:
         if delta["missing"] > 0:
             level = max(level, LEVEL_WARN)
             problems.append(f"{delta['missing']} probe samples missing (stamp gaps)")
-        if delta["bad_messages"] > 0:
+        if now["bad_messages"] > 0:  # a standing fault (e.g. mixed probe types): named while it lasts
             level = max(level, LEVEL_WARN)
-            problems.append(f"{delta['bad_messages']} input messages of the wrong type or layout")
+            streams = ", ".join(f"{s}: {sum(c.values())} ({', '.join(sorted(c))})"
+                                for s, c in sorted(acc.bad_messages.items()) if sum(c.values()))
+            problems.append(f"{now['bad_messages']} input messages of the wrong type or layout ({streams})")
         if acc.processed == 0:
             level = max(level, LEVEL_WARN)
-            problems.append("no sample filtered yet")
+            problems.append("no sample filtered yet: " + self.no_data_cause(acc))
         elif not converged:
             level = max(level, LEVEL_WARN)
             why = (f"max relative std {max_rel:.3g} >= {self.options.convergence_relative_std:g}"
@@ -672,6 +684,34 @@ class EstimatorPipeline:
             nis_bounds=bounds, falling_behind=falling_behind, lag_s=self._lag_s,
             divergence_recoveries=now["recoveries"], samples=summary, filter_counts=dict(ekf.health.counts),
             pulse_counts=dict(acc.pulses), impact_counts=dict(acc.impact), extra=dict(self._events))
+
+    def no_data_cause(self, acc: Accounting | None = None) -> str:
+        """Why nothing has been filtered, naming the silent or refused input."""
+        acc = acc or self.accounting()
+        pulses = acc.pulses
+        causes = []
+        silent = [f"probe plane {p}" for p in (1, 2) if acc.received[p] == 0]
+        if silent:
+            causes.append(f"no samples received on {' and '.join(silent)}")
+        if pulses["pulses_in"] == 0:
+            causes.append("no keyphasor pulse received")
+        elif pulses["accepted"] < 2:
+            refused = {k[len('rejected_'):]: v for k, v in pulses.items() if k.startswith("rejected_") and v}
+            causes.append(f"{pulses['pulses_in']} keyphasor pulse(s) received, {pulses['accepted']} accepted"
+                          + (f", refused as {refused}" if refused else "")
+                          + f" (the tracker needs 2 pulses at {self.tach_config.min_speed_rad_s:g}-"
+                          f"{self.tach_config.max_speed_rad_s:g} rad/s on the probes' clock)")
+        no_ref = acc.ekf_rejected.get("no_shaft_reference", 0)
+        if no_ref and not causes:
+            causes.append(f"{no_ref} samples had no shaft reference: the keyphasor pulses do not cover the "
+                          f"probe samples' time span (another clock, or stamps in other units?)")
+        for stream, counts in sorted(acc.bad_messages.items()):
+            if sum(counts.values()):
+                causes.append(f"{sum(counts.values())} {stream} message(s) refused ({', '.join(sorted(counts))})")
+        if not causes:
+            pending = acc.pending[1] + acc.pending[2]
+            causes.append(f"{pending} samples still waiting for alignment or a shaft reference")
+        return "; ".join(causes)
 
     def accounting(self) -> Accounting:
         """Counts proving every input sample was processed, rejected with a reason, or is pending."""
@@ -687,8 +727,8 @@ class EstimatorPipeline:
                            "plane2": pending["plane2"] + block.stamps_ns.size}
         impact = {k: int(v) for k, v in c.items() if k.endswith("_impact")}
         impact["pending_impact"] = pending["impact"]
-        return Accounting(
-            received={p: c[f"received_plane{p}"] for p in (1, 2)}, processed=self._processed,
+        return Accounting(  # samples held back for the other plane are received and pending
+            received={p: c[f"received_plane{p}"] + self._held_count[p] for p in (1, 2)}, processed=self._processed,
             ekf_rejected=dict(self._ekf_counts),
             aligner_rejected={p: {r: c[f"{r}_plane{p}"] for r in ALIGNER_REJECTIONS} for p in (1, 2)},
             pending={p: pending[f"plane{p}"] for p in (1, 2)},

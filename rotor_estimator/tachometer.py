@@ -50,9 +50,18 @@ __all__ = [
     "ShaftAngleTracker",
     "shaft_states_from_pulses",
     "PULSE_COUNTERS",
+    "max_speed_for_rig",
 ]
 
 TWO_PI = 2.0 * math.pi
+DEFAULT_MAX_SPEED_RAD_S = TWO_PI * 1000.0  # 60000 rpm
+
+
+def max_speed_for_rig(running_speed_rad_s: float) -> float:
+    """The tracker's speed limit for a rig: twice its running speed (a pulse interval shorter than
+    half a revolution at running speed is spurious), and never below 60000 rpm, so that rigs faster
+    than that are tracked instead of having every pulse rejected as too fast."""
+    return max(DEFAULT_MAX_SPEED_RAD_S, 2.0 * float(running_speed_rad_s))
 _LOCK_PULSES = 3  # below this many pulses in a track, no skipped revolution is inferred
 
 #: Counter names of :attr:`ShaftAngleTracker.counters`. ``pulses_in`` equals
@@ -103,7 +112,7 @@ class TachometerConfig:
     max_extrapolation_revs: float = 2.5
     stop_timeout_s: float = 1.0
     min_speed_rad_s: float = 10.0
-    max_speed_rad_s: float = TWO_PI * 1000.0
+    max_speed_rad_s: float = DEFAULT_MAX_SPEED_RAD_S
     pulse_tolerance_revs: float = 0.25
     max_missed_pulses: int = 3
     max_consecutive_rejections: int = 4

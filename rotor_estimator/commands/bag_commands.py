@@ -18,11 +18,14 @@ from typing import Any
 import numpy as np
 
 from .. import cli_types
-from ..errors import BagError, InputError
+from ..errors import BagError, InputError, NoDataError
 from ..identification.identifiability import NOT_DETERMINED, WEAK
 
 
 # ---------------------------------------------------------------------------------- replay
+#: replay's exit codes: 0 an estimate; 2 bad input or usage; 3 nothing could be filtered (no
+#: estimate, the cause is named); 4 an estimate was printed but the filter diverged (status ERROR).
+EXIT_DIVERGED = 4
 def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str | Path | None = None, *,
                progress: bool = True, publish_period_s: float = 0.05, salvage: bool = False) -> dict[str, Any]:
     """Replay ``bag`` through the pipeline (``passes`` from the rig file); return the summary dict."""
@@ -74,9 +77,9 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
             raise
         if writer is not None:
             writer.close()
-        if not outs:
-            raise InputError(f"bag {bag}: no probe sample could be filtered "
-                             f"({pipe.accounting().summary()}); check the topics and keyphasor pulses")
+        if pipe.accounting().processed == 0 or not outs:
+            raise NoDataError(f"bag {bag}: no probe sample could be filtered, so there is no estimate: "
+                              f"{pipe.no_data_cause()}")
         final = outs[-1]
         initial = final.coefficients
     acc = pipe.accounting()
@@ -128,7 +131,7 @@ def format_replay(r: dict[str, Any]) -> str:
 def cmd_replay(args: argparse.Namespace) -> int:
     result = replay_bag(args.bag, args.rig, args.out, progress=not args.no_progress, salvage=args.salvage)
     print(json.dumps(result, indent=1) if args.json else format_replay(result))
-    return 0
+    return EXIT_DIVERGED if result["status"]["level"] >= 2 else 0
 
 
 # ---------------------------------------------------------------------------------- simulate

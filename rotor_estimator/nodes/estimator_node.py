@@ -23,14 +23,19 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, qos_profile_sensor_data
 
+try:  # Iron and later
+    from rclpy.event_handler import SubscriptionEventCallbacks as _SubscriptionEventCallbacks
+except ImportError:  # Humble
+    from rclpy.qos_event import SubscriptionEventCallbacks as _SubscriptionEventCallbacks
+
 import msg_adapters as ma
 
 from .params import ParamSpec, declare_parameters, parameters_yaml, warn_if_numba_missing
 from .spin import run_node
 from ..alignment import AlignmentConfig
 from ..config import BearingCoefficients, RigFile, load_rig_file
-from ..pipeline import LEVEL_WARN, EstimatorPipeline, PipelineOptions
-from ..tachometer import TachometerConfig
+from ..pipeline import LEVEL_ERROR, LEVEL_WARN, EstimatorPipeline, PipelineOptions
+from ..tachometer import TachometerConfig, max_speed_for_rig
 from .io import diagnostic_record, feed_message, output_messages
 
 _PC2 = "sensor_msgs/msg/PointCloud2"
@@ -140,6 +145,7 @@ def pipeline_from_parameters(values: Mapping[str, Any]) -> tuple[EstimatorPipeli
     tach = TachometerConfig(window_pulses=int(v["tach_window_pulses"]), fit_order=int(v["tach_fit_order"]),
                             stop_timeout_s=float(v["tach_stop_timeout_s"]),
                             min_speed_rad_s=float(v["tach_min_speed_rad_s"]),
+                            max_speed_rad_s=max_speed_for_rig(rig_file.rig.speed_rad_s),
                             fit_history=int(v["tach_fit_history"]))
     align = AlignmentConfig(sample_rate_hz=rig_file.rig.sample_rate_hz,
                             match_tolerance_fraction=float(v["match_tolerance_fraction"]),
@@ -173,6 +179,8 @@ class EstimatorNode(Node):
                                      durability=qos_profile_sensor_data.durability)
         self._subs: dict[str, tuple[str, Any]] = {}
         self._wrong_publishers: dict[str, set[str]] = {}
+        self.messages_lost: dict[str, int] = {}   # per stream, reported by the middleware
+        self.unexpected_errors = 0                # exceptions caught in callbacks (the node keeps running)
         for stream in ("probe1", "probe2", "keyphasor", "impact"):
             self._subscribe(stream, self._initial_type(stream))
         self._pubs = {}
@@ -212,9 +220,20 @@ class EstimatorNode(Node):
         if old is not None:
             self.destroy_subscription(old[1])
         topic = getattr(self.topics, stream)
-        sub = self.create_subscription(self._factory.message_class(typename), topic,
-                                       lambda msg, s=stream: self._on_input(s, msg), self._input_qos)
+        callback = (lambda msg, s=stream: self._on_input(s, msg))
+        try:  # count messages the middleware drops (e.g. a keyphasor flood beyond the queue)
+            events = _SubscriptionEventCallbacks(message_lost=lambda info, s=stream: self._on_lost(s, info))
+            sub = self.create_subscription(self._factory.message_class(typename), topic, callback, self._input_qos,
+                                           event_callbacks=events)
+        except Exception as exc:  # an RMW without the message-lost event: loss cannot be counted there
+            self.get_logger().info(f"{topic}: transport message loss is not reported by this RMW ({exc})")
+            sub = self.create_subscription(self._factory.message_class(typename), topic, callback, self._input_qos)
         self._subs[stream] = (typename, sub)
+
+    def _on_lost(self, stream: str, info: Any) -> None:
+        """The middleware dropped ``info.total_count_change`` messages of ``stream`` before we saw them."""
+        self.messages_lost[stream] = int(getattr(info, "total_count", 0)) or (
+            self.messages_lost.get(stream, 0) + int(getattr(info, "total_count_change", 0)))
 
     def _check_graph(self) -> None:
         """Report publishers of a wrong type; in ``auto`` mode follow the publishers' type."""
@@ -244,9 +263,13 @@ class EstimatorNode(Node):
     def _on_input(self, stream: str, msg: Any) -> None:
         probe = stream in ("probe1", "probe2")
         now = self._now_ns()
-        with self.lock:
-            feed_message(self.pipeline, stream, msg, now)
-            outputs = self.pipeline.process() if probe else []
+        try:
+            with self.lock:
+                feed_message(self.pipeline, stream, msg, now)
+                outputs = self.pipeline.process() if probe else []
+        except Exception as exc:  # one bad message must not take the rig's estimator down
+            self._unexpected(f"handling a {stream} message", exc)
+            return
         self._last_input_ns = now
         if probe:
             self._last_probe_ns = now
@@ -268,8 +291,20 @@ class EstimatorNode(Node):
                 outputs = self.pipeline.flush()      # input stopped: decide everything, final estimate
                 self._idle_flushed = True
             else:
-                outputs = self.pipeline.process(now if idle else None)
+                try:
+                    outputs = self.pipeline.process(now if idle else None)
+                except Exception as exc:
+                    self._unexpected("processing on the idle timer", exc)
+                    return
         self._publish(outputs)
+
+    def _unexpected(self, what: str, exc: Exception) -> None:
+        """Log an unexpected exception with its traceback, count it, and keep the node running."""
+        import traceback
+
+        self.unexpected_errors += 1
+        self.get_logger().error(f"unexpected error {what} ({self.unexpected_errors} so far; the node keeps "
+                                f"running): {exc!r}\n{traceback.format_exc()}")
 
     def _publish(self, outputs: list) -> None:
         for out in outputs:
@@ -286,6 +321,16 @@ class EstimatorNode(Node):
         if wrong:
             status = replace(status, level=max(status.level, LEVEL_WARN),
                              message=status.message + f"; wrong-type publishers {wrong}")
+        lost = {s: n for s, n in self.messages_lost.items() if n}
+        if lost:
+            status = replace(status, level=max(status.level, LEVEL_WARN),
+                             message=status.message + f"; messages dropped by the middleware before delivery {lost} "
+                             "(input faster than the node takes it: raise input_queue_depth or lower the rate)",
+                             extra={**status.extra, **{f"messages_lost_{s}": n for s, n in lost.items()}})
+        if self.unexpected_errors:
+            status = replace(status, level=LEVEL_ERROR,
+                             message=status.message + f"; {self.unexpected_errors} unexpected error(s) in callbacks "
+                             "(see the node's log)", extra={**status.extra, "unexpected_errors": self.unexpected_errors})
         stamp = last if last is not None else self._now_ns()
         record = diagnostic_record(status, self.hardware_id)
         self._diag_pub.publish(ma.diagnostics_to_msg(self._factory, stamp, [record]))
