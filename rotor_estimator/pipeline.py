@@ -661,6 +661,14 @@ class EstimatorPipeline:
         if delta["no_shaft_reference"] > 0 and delta["processed"] == 0:
             level = max(level, LEVEL_WARN)
             problems.append("no shaft reference (keyphasor pulses missing or shaft stopped)")
+        seen = self._last_stamp_seen
+        if seen[1] is not None and seen[2] is not None:
+            lag = {p: (seen[3 - p] - seen[p]) * 1e-9 for p in (1, 2)}
+            stalled = max(lag, key=lag.get)
+            if lag[stalled] > self.options.plane_skew_s:
+                level = max(level, LEVEL_WARN)
+                problems.append(f"probe plane {stalled} stalled: its newest sample is {lag[stalled]:.2f} s behind "
+                                f"plane {3 - stalled}'s (topic silent or its publisher stopped)")
         if delta["missing"] > 0:
             level = max(level, LEVEL_WARN)
             problems.append(f"{delta['missing']} probe samples missing (stamp gaps)")

@@ -102,3 +102,20 @@ def test_accounting_is_balanced_after_every_call_in_any_interleaving(rig_file, r
     pipe.flush()
     acc = pipe.accounting()
     assert acc.balanced() and acc.processed > 0.9 * n
+
+
+def test_a_stalled_probe_plane_is_named_in_the_status(rig_file, recording):
+    """Plane 2 stops publishing while plane 1 goes on: the status names plane 2 as stalled (before:
+    'no sample filtered yet' or a plain 'not converged', naming no topic)."""
+    pipe = EstimatorPipeline(rig_file.rig, rig_file.estimator, None, AlignmentConfig(), 0.05)
+    rec = recording
+    cut = len(rec) // 4
+    for p in recording.pulse_stamps_ns:
+        pipe.on_pulse(int(p))
+    pipe.on_probe_block(1, rec.stamps_ns, rec.probes_m[:, :2])
+    pipe.on_probe_block(2, rec.stamps_ns[:cut], rec.probes_m[:cut, 2:])
+    pipe.process()
+    behind_s = (rec.stamps_ns[-1] - rec.stamps_ns[cut - 1]) * 1e-9
+    pipe.options = dataclasses.replace(pipe.options, plane_skew_s=behind_s / 2)
+    status = pipe.status()
+    assert status.level >= LEVEL_WARN and "probe plane 2 stalled" in status.message
