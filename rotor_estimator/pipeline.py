@@ -45,6 +45,7 @@ from .config import COEFFICIENT_NAMES, EstimatorConfig, RigConfig
 from .ekf import StreamingEKF, initial_covariance
 from .identification.identifiability import IdentifiabilityReport, report_from_filter
 from .errors import ConfigError, InputError
+from .consistency import InnovationConsistency
 from .tachometer import ShaftAngleTracker, TachometerConfig, max_speed_for_rig
 
 __all__ = ["PipelineOptions", "PipelineStatus", "Output", "Accounting", "EstimatorPipeline",
@@ -317,6 +318,7 @@ class EstimatorPipeline:
         self._last_nis = math.nan
         self._last_shaft = (0.0, 0.0)
         self._last_emitted_ns: int | None = None
+        self.consistency = InnovationConsistency()     # NIS and whiteness of this run's innovations
 
     def reset(self, initial_coefficients: np.ndarray | None = None) -> None:
         """Restart the estimation from the prior (``r0``, ``P0``), or from ``initial_coefficients``.
@@ -580,6 +582,7 @@ class EstimatorPipeline:
             k = int((status == code).sum())
             if k:
                 self._ekf_counts[reason] += k
+        self.consistency.add(res.nis, res.innovation_m, res.innovation_std_m, status == kern.STATUS_UPDATED)
         upd = np.flatnonzero(status == kern.STATUS_UPDATED)
         if upd.size:
             i = int(upd[-1])

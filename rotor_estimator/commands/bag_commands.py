@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import cli_types
 from ..errors import BagError, InputError, NoDataError
-from ..identification.identifiability import NOT_DETERMINED, WEAK
+from ..identification.identifiability import LABEL_RULE, NOT_DETERMINED
 
 
 # ---------------------------------------------------------------------------------- replay
@@ -87,19 +87,23 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
     ident = {e.name: e for e in final.identifiability.entries}
     for name, unit, mean, std in zip(COEFFICIENT_NAMES, COEFFICIENT_UNITS, final.coefficients, final.std):
         coefficients[name] = {"mean": float(mean), "std": float(std), "unit": unit,
-                              "status": ident[name].status, "predicted_std_from_data": ident[name].predicted_std}
+                              "status": ident[name].status, "predicted_std_from_data": ident[name].predicted_std,
+                              "relative_std_used_for_status": ident[name].relative_std}
     not_determined = final.identifiability.names_with(NOT_DETERMINED)
+    table = final.identifiability.format(posterior_std=final.std, units=COEFFICIENT_UNITS)
     summary = acc.summary()
     samples = {"processed": summary["processed"], "rejected": summary["rejected"],
                **{k: v for k, v in summary.items() if k not in ("processed", "rejected")}}
     d = final.diagnostics
+    consistency = pipe.consistency.verdict()
     return {"bag": str(bag), "rig": rig_file.rig.name, "passes": passes, "stamp_ns": final.stamp_ns,
             "coefficients": coefficients, "not_determined": not_determined, "samples": samples,
             "accounting_balanced": acc.balanced(), "pulses": dict(acc.pulses),
             "status": {"level": d.level, "message": d.message, "converged": d.converged,
                        "nis_window_mean": d.nis_window_mean, "divergence_recoveries": d.divergence_recoveries},
             "out": str(out_bag) if out_bag is not None else None, "outputs_written": written,
-            "salvaged": damage.describe() if damage is not None else None}
+            "salvaged": damage.describe() if damage is not None else None,
+            "consistency": consistency.as_dict(), "table": table}
 
 
 def _write(writer, outs, output_messages, hardware_id: str) -> int:
@@ -110,17 +114,25 @@ def _write(writer, outs, output_messages, hardware_id: str) -> int:
 
 
 def format_replay(r: dict[str, Any]) -> str:
+    c = r["consistency"]
     lines = [f"bag {r['bag']} (rig {r['rig']}, {r['passes']} pass{'es' if r['passes'] > 1 else ''}); "
-             f"estimate at stamp {r['stamp_ns']} ns", "",
-             f"  {'':4} {'estimate':>14} {'std':>12}  unit"]
-    for name, c in r["coefficients"].items():
-        flag = {NOT_DETERMINED: "  NOT DETERMINED by these data (the number is not a measurement)",
-                WEAK: "  weakly determined (10-25 %)"}.get(c["status"], "")
-        lines.append(f"  {name:4} {c['mean']:14.6g} {c['std']:12.4g}  {c['unit']}{flag}")
+             f"estimate at stamp {r['stamp_ns']} ns", "", r["table"], ""]
+    if c["samples"] and c["nis_band"][0] == c["nis_band"][0]:
+        lines += [f"fit: mean NIS {c['nis_mean']:.3f} (consistent: {c['nis_band'][0]:.3f}-{c['nis_band'][1]:.3f} for "
+                  f"{c['nis_dof']} channels over {c['samples']} samples); innovation whiteness: RMS autocorrelation "
+                  f"{c['rms_autocorrelation']:.3f} over lags 1-{len(c['autocorrelation_by_lag'])} "
+                  f"(Ljung-Box p = {c['whiteness_p_value']:.2g})"]
+        if c["model_mismatch"]:
+            lines.append(f"MODEL MISMATCH: {c['reason']}. The model does not fit these data, so the coefficients "
+                         f"absorb what it lacks and their std is not their error: run `rotor-estimator diagnose "
+                         f"{r['bag']}` to find the effect")
+        else:
+            lines.append("the model fits these data to the noise; a wrong probe or hammer sensitivity can still "
+                         "shift the coefficients unseen (calibration is outside the std): run `diagnose` to check")
     s = r["samples"]
     reasons = {k: v for k, v in s.items() if v and k not in ("processed", "rejected") and not
                k.startswith(("received", "pending", "reordered"))}
-    lines += ["", f"samples: {s['processed']} processed, {s['rejected']} rejected"
+    lines += [f"samples: {s['processed']} processed, {s['rejected']} rejected"
               + (f" ({', '.join(f'{k} {v}' for k, v in reasons.items())})" if reasons else ""),
               f"status: {r['status']['message']}"]
     if r["out"]:

@@ -40,6 +40,8 @@ from .information import bound
 DETERMINED = "determined"
 WEAK = "weakly determined"
 NOT_DETERMINED = "not determined"
+LABEL_RULE = "determined <= 10 %, weakly determined <= 25 %, above: not determined (no value shown)"
+LABEL_FLOOR_NOTE = "5 % of the direct coefficients of the same kind"
 
 
 @dataclass(frozen=True)
@@ -64,6 +66,7 @@ class CoefficientStatus:
     predicted_std: float
     relative_std: float
     status: str
+    downgraded: bool = False  # would be "determined" on its own std, but another coefficient is not
 
     @property
     def value_for_display(self) -> float | None:
@@ -86,12 +89,26 @@ class IdentifiabilityReport:
     def names_with(self, status: str) -> list[str]:
         return [e.name for e in self.entries if e.status == status]
 
-    def format(self) -> str:
-        lines = [f"{'coef':<8}{'estimate':>14}{'pred. std':>12}{'rel.':>9}  status"]
-        for e in self.entries:
+    def format(self, posterior_std: np.ndarray | None = None, units: tuple[str, ...] | None = None) -> str:
+        """The coefficient table every command prints (replay, identify): the label is decided by
+        the printed ``rel.`` column alone (see :data:`LABEL_RULE`), a not-determined coefficient
+        shows ``--``. ``posterior_std`` (a filter's, prior included) is printed beside it."""
+        post = "" if posterior_std is None else f"{'std (filter)':>13}"
+        lines = [f"{'coef':<6}{'estimate':>13}{post}{'std (data)':>12}{'rel.':>9}  {'unit':<7} status"]
+        for i, e in enumerate(self.entries):
             val = "--" if e.value_for_display is None else f"{e.estimate:.6g}"
-            rel = "inf" if not np.isfinite(e.relative_std) else f"{100 * e.relative_std:.3g}%"
-            lines.append(f"{e.name:<8}{val:>14}{e.predicted_std:>12.4g}{rel:>9}  {e.status}")
+            rel = "inf" if not np.isfinite(e.relative_std) else f"{100 * e.relative_std:.3g} %"
+            unit = units[i] if units is not None else ""
+            extra = "" if posterior_std is None else f"{posterior_std[i]:>13.4g}"
+            note = "*" if e.downgraded else ""
+            lines.append(f"{e.name:<6}{val:>13}{extra}{e.predicted_std:>12.4g}{rel:>9}  {unit:<7} {e.status}{note}")
+        if any(e.downgraded for e in self.entries):
+            lines.append("* determined on its own rel., but another coefficient is not determined, so this local "
+                         "bound is itself uncertain")
+        lines.append(f"status from rel. = std (data) / |estimate| (floor: {LABEL_FLOOR_NOTE}):\n  {LABEL_RULE}")
+        lines.append("std (data): the Cramer-Rao bound of these data alone"
+                     + ("" if posterior_std is None else "; std (filter): the filter's, prior included")
+                     + ".\n  No std includes calibration errors (probe or hammer sensitivity) or model errors.")
         bad = self.names_with(NOT_DETERMINED)
         if bad:
             lines.append(f"NOT DETERMINED by the data so far: {', '.join(bad)} (no value reported; add excitation: "
@@ -126,9 +143,10 @@ def report_from_std(std: np.ndarray, estimates: np.ndarray, names: tuple[str, ..
     for n, e, s, r in zip(names, est, std, rel):
         status = (DETERMINED if r <= thresholds.determined_rel else WEAK if r <= thresholds.weak_rel
                   else NOT_DETERMINED)
-        if status == DETERMINED and any_undetermined:
+        downgraded = status == DETERMINED and any_undetermined
+        if downgraded:
             status = WEAK
-        out.append(CoefficientStatus(n, float(e), float(s), float(r), status))
+        out.append(CoefficientStatus(n, float(e), float(s), float(r), status, downgraded))
     return IdentifiabilityReport(tuple(out))
 
 
