@@ -27,8 +27,12 @@ from ..identification.identifiability import LABEL_RULE, NOT_DETERMINED
 #: estimate, the cause is named); 4 an estimate was printed but the filter diverged (status ERROR).
 EXIT_DIVERGED = 4
 def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str | Path | None = None, *,
-               progress: bool = True, publish_period_s: float = 0.05, salvage: bool = False) -> dict[str, Any]:
-    """Replay ``bag`` through the pipeline (``passes`` from the rig file); return the summary dict."""
+               progress: bool = True, publish_period_s: float = 0.005, salvage: bool = False,
+               csv_path: str | Path | None = None) -> dict[str, Any]:
+    """Replay ``bag`` through the pipeline (``passes`` from the rig file); return the summary dict.
+
+    One estimate every ``publish_period_s`` of sample time goes to ``out_bag`` and to the
+    coefficient-history CSV ``csv_path`` (last pass)."""
     from tqdm import tqdm
 
     import msg_adapters as ma
@@ -53,6 +57,7 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
     initial = None
     written = 0
     final = None
+    history: list = []
     for k in range(passes):
         pipe = EstimatorPipeline(rig_file.rig, rig_file.estimator, None,
                                  AlignmentConfig(sample_rate_hz=rig_file.rig.sample_rate_hz), publish_period_s,
@@ -67,10 +72,14 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
                     outs = pipe.process()
                     if writer is not None:
                         written += _write(writer, outs, output_messages, rig_file.rig.name)
+                    if last and csv_path is not None:
+                        history += outs
                     bar.update()
                 outs = pipe.flush()
                 if writer is not None:
                     written += _write(writer, outs, output_messages, rig_file.rig.name)
+                if last and csv_path is not None:
+                    history += outs
         except BaseException:  # error or Ctrl-C: no partial output bag is left behind
             if writer is not None:
                 writer.abort()
@@ -82,6 +91,8 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
                               f"{pipe.no_data_cause()}")
         final = outs[-1]
         initial = final.coefficients
+    if csv_path is not None:
+        _write_history_csv(csv_path, history)
     acc = pipe.accounting()
     coefficients = {}
     ident = {e.name: e for e in final.identifiability.entries}
@@ -104,6 +115,23 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
             "out": str(out_bag) if out_bag is not None else None, "outputs_written": written,
             "salvaged": damage.describe() if damage is not None else None,
             "consistency": consistency.as_dict(), "table": table}
+
+
+def _write_history_csv(path: str | Path, outputs: list) -> None:
+    """The coefficient history as CSV, one row per published estimate; units in the header."""
+    from ..config import COEFFICIENT_NAMES, COEFFICIENT_UNITS
+    from ..safe_write import write_text
+
+    units = [u.replace("*", "_").replace("/", "_per_") for u in COEFFICIENT_UNITS]
+    header = ["stamp_ns", "time_s"] + [f"{n}_{u}" for n, u in zip(COEFFICIENT_NAMES, units)] + \
+        [f"{n}_std_{u}" for n, u in zip(COEFFICIENT_NAMES, units)] + ["nis_window_mean", "status_level"]
+    t0 = outputs[0].stamp_ns if outputs else 0
+    rows = [",".join(header)]
+    for o in outputs:
+        rows.append(",".join([str(o.stamp_ns), f"{(o.stamp_ns - t0) * 1e-9:.9f}"]
+                             + [f"{v:.9g}" for v in o.coefficients] + [f"{v:.6g}" for v in o.std]
+                             + [f"{o.nis_window_mean:.6g}", str(o.diagnostics.level)]))
+    write_text(path, "\n".join(rows) + "\n")
 
 
 def _write(writer, outs, output_messages, hardware_id: str) -> int:
@@ -141,7 +169,10 @@ def format_replay(r: dict[str, Any]) -> str:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    result = replay_bag(args.bag, args.rig, args.out, progress=not args.no_progress, salvage=args.salvage)
+    if not args.publish_rate_hz > 0:
+        raise InputError(f"--publish-rate must be > 0 Hz, got {args.publish_rate_hz:g}")
+    result = replay_bag(args.bag, args.rig, args.out, progress=not args.no_progress, salvage=args.salvage,
+                        publish_period_s=1.0 / args.publish_rate_hz, csv_path=args.csv)
     print(json.dumps(result, indent=1) if args.json else format_replay(result))
     return EXIT_DIVERGED if result["status"]["level"] >= 2 else 0
 
@@ -321,6 +352,10 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("bag", type=Path, help="rosbag2 directory or .mcap file with the input topics")
     p.add_argument("--rig", type=Path, default=None, help="rig YAML (default: the bundled seed rig)")
     p.add_argument("--out", type=Path, default=None, help="write the node's output topics to this new MCAP bag")
+    p.add_argument("--publish-rate", dest="publish_rate_hz", type=float, default=200.0, metavar="HZ",
+                   help="estimates per second of sample time written to --out and --csv (default 200)")
+    p.add_argument("--csv", type=Path, default=None, metavar="FILE",
+                   help="write the coefficient history (time_s, each coefficient and its std, NIS) as CSV")
     p.add_argument("--salvage", action="store_true", help="use the intact part of a damaged bag (the messages lost are counted and reported on stderr); without it a damaged bag is an error")
     p.add_argument("--json", action="store_true", help="print JSON (SI units)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -173,3 +173,25 @@ def test_simulated_coastdown_with_impacts_has_falling_pulse_rate_and_alternating
     assert len(hits) == 2
     assert rec.impact_force_n[hits[0], 1] == -515.0 and rec.impact_force_n[hits[0], 0] == 0.0
     assert rec.impact_force_n[hits[1], 0] == 515.0 and rec.impact_force_n[hits[1], 1] == 0.0
+
+
+def test_replay_publish_rate_sets_the_output_density_and_csv_holds_the_history(sim_bag, tmp_path, capsys):
+    """--publish-rate R writes about R estimates per second of sample time (to --out and --csv alike);
+    the CSV's last row is the printed final estimate, with units in every column name."""
+    import csv
+
+    counts = {}
+    for rate in (100.0, 400.0):
+        out, table = tmp_path / f"out{rate:g}", tmp_path / f"h{rate:g}.csv"
+        code, text, _ = run(["replay", str(sim_bag), "--no-progress", "--json", "--publish-rate", str(rate),
+                             "--out", str(out), "--csv", str(table)], capsys)
+        assert code == 0
+        result = json.loads(text)
+        rows = list(csv.DictReader(table.open()))
+        assert len(rows) == result["outputs_written"]
+        counts[rate] = len(rows)
+        last = rows[-1]
+        assert float(last["kxx_N_per_m"]) == pytest.approx(result["coefficients"]["kxx"]["mean"], rel=1e-8)
+        assert all(("_N_per_m" in k or "_N_s_per_m" in k) for k in last if k[:3] in {"kxx", "cyy"})
+    assert 3.0 <= counts[400.0] / counts[100.0] <= 5.0
+    assert run(["replay", str(sim_bag), "--publish-rate", "0"], capsys)[0] == 2
