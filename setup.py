@@ -39,6 +39,7 @@ setup(
         "tqdm>=4.60",
         "matplotlib>=3.6",
         "threadpoolctl>=3.1",
+        "h5py>=3.8",  # HDF5 DAQ exports (import)
     ],
     extras_require={
         # A real rclpy from the ROS 2 Kilted wheels, for machines without a system ROS 2.

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 
-COMMAND_MODULES = ("bag_commands", "diagnose_cmd", "identify_cmd")
+COMMAND_MODULES = ("bag_commands", "import_cmd", "diagnose_cmd", "identify_cmd")
 
 
 def _modules():

@@ -132,18 +132,23 @@ def test_import_csv_round_trips_exactly(tmp_path, capsys):
     np.testing.assert_array_equal(rec.pulse_stamps_ns, np.round(pulses * 1e9).astype(np.int64))
 
 
-def test_import_npz_warns_about_nan_and_suspected_units(tmp_path, capsys):
+def test_import_npz_warns_about_nan_and_refuses_values_not_in_metres(tmp_path, capsys):
+    """NaN probe values are kept with a warning; values clearly in um are refused and no bag is written
+    (before: a warning and a bag of wrong numbers)."""
     cols, pulses = _signals()
-    cols["xp1"] = cols["xp1"] * 1e6            # micrometres by mistake
     cols["yp2"][[3, 9]] = np.nan
     np.savez(tmp_path / "signals.npz", **cols)
     np.savez(tmp_path / "pulses.npz", pulse_times=pulses)
     code, _, err = run(["import", str(tmp_path / "signals.npz"), "--tach", str(tmp_path / "pulses.npz"),
                         "--out", str(tmp_path / "bag")], capsys)
-    assert code == 0
-    assert "yp2: 2 NaN/inf" in err and "probably in um or mm" in err
+    assert code == 0 and "yp2: 2 NaN/inf" in err
     rec = read_input_bag(tmp_path / "bag")
     assert np.isnan(rec.probes_m[3, 3]) and len(rec) == 400
+    cols["xp1"] = cols["xp1"] * 1e6            # micrometres by mistake
+    np.savez(tmp_path / "um.npz", **cols)
+    code, _, err = run(["import", str(tmp_path / "um.npz"), "--tach", str(tmp_path / "pulses.npz"),
+                        "--out", str(tmp_path / "bag_um")], capsys)
+    assert code == 2 and "not metres" in err and not (tmp_path / "bag_um").exists()
 
 
 @pytest.mark.parametrize("change,message", [
@@ -155,7 +160,9 @@ def test_import_rejects_bad_signals_with_a_clear_message(tmp_path, capsys, chang
     cols, _ = _signals()
     change(cols)
     np.savez(tmp_path / "signals.npz", **cols)
-    code, _, err = run(["import", str(tmp_path / "signals.npz"), "--out", str(tmp_path / "bag")], capsys)
+    np.savez(tmp_path / "pulses.npz", pulse_times=_signals()[1])
+    code, _, err = run(["import", str(tmp_path / "signals.npz"), "--tach", str(tmp_path / "pulses.npz"),
+                        "--out", str(tmp_path / "bag")], capsys)
     assert code == 2 and message in err and "Traceback" not in err
     assert not (tmp_path / "bag").exists()
 
