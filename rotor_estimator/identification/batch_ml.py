@@ -179,4 +179,5 @@ def fit(arrays: RigArrays, model: CoefficientModel, records: Record | list[Recor
         imbalance_kg_m=np.asarray(b_est, dtype=float).copy(), imbalance_estimated=options.estimate_imbalance,
         runtime_s=time.perf_counter() - t_start, converged=converged, iterations=total_it, information=info_shared,
         extra={"cost": float(cost), "noise_std_estimate_m": float(options.noise_std_m * np.sqrt(cost / (4 * n_used))),
+               "n_parameters": int(prob.n_par),
                "initial_states": p[n_shared:].reshape(-1, 8)})

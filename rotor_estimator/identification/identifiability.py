@@ -86,6 +86,15 @@ class IdentifiabilityReport:
     def all_determined(self) -> bool:
         return all(e.status == DETERMINED for e in self.entries)
 
+    def with_status_override(self, status: str) -> "IdentifiabilityReport":
+        """The same report with every determined or weak status replaced (e.g. under a model mismatch,
+        where the information says nothing about the error)."""
+        from dataclasses import replace
+
+        return IdentifiabilityReport(tuple(e if e.status == NOT_DETERMINED else replace(e, status=status,
+                                                                                         downgraded=False)
+                                           for e in self.entries))
+
     def names_with(self, status: str) -> list[str]:
         return [e.name for e in self.entries if e.status == status]
 

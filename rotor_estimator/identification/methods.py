@@ -38,7 +38,8 @@ DEFAULT_LIVE = "ekf"
 
 def identify(arrays: RigArrays, config: EstimatorConfig, records: Record | list[Record], *, method: str = "auto",
              model: CoefficientModel = CoefficientModel(), estimate_imbalance: bool = False,
-             imbalance_kg_m: np.ndarray | None = None, theta0: np.ndarray | None = None) -> IdentificationResult:
+             imbalance_kg_m: np.ndarray | None = None, theta0: np.ndarray | None = None,
+             trial_imbalance_kg_m: list[np.ndarray] | None = None) -> IdentificationResult:
     """Run ``method`` (``auto``: the offline default) on the records with the rig file's prior/tuning."""
     if method == "auto":
         method = DEFAULT_OFFLINE
@@ -50,9 +51,11 @@ def identify(arrays: RigArrays, config: EstimatorConfig, records: Record | list[
     if method == "batch-ml":
         return fit(arrays, model, recs, theta0, options=BatchOptions(
             noise_std_m=config.measurement_noise_std_m, estimate_imbalance=estimate_imbalance),
-            imbalance_kg_m=imbalance_kg_m)
+            imbalance_kg_m=imbalance_kg_m, trial_imbalance_kg_m=trial_imbalance_kg_m)
     if len(recs) != 1:
         raise ConfigError(f"identify.method: {method} takes one record; use batch-ml for several")
+    if trial_imbalance_kg_m is not None and np.any(np.asarray(trial_imbalance_kg_m)):
+        raise ConfigError(f"identify.method: {method} does not take trial weights; use batch-ml")
     opts = KalmanOptions.from_config(config, model)
     from dataclasses import replace
 
