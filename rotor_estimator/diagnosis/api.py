@@ -133,10 +133,50 @@ def _row(ctx: FitContext, label: str, prediction: np.ndarray, held_out: float, c
             "coefficients": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, coefficients)))}
 
 
+#: Longest stretch of a record the model fits run on (s). Their memory and time grow with the samples
+#: fitted (about 130 MB and 12 s per second of record), so a long record is diagnosed on one window of
+#: this length, chosen by :func:`analysis_window` and reported; see the README.
+MAX_FIT_WINDOW_S = 1.0
+
+
+def analysis_window(recording: RigRecording, max_s: float = MAX_FIT_WINDOW_S) -> tuple[int, int, str]:
+    """``(start, stop, why)``: the whole record when it is short enough, else the ``max_s`` window that
+    holds the most hammer impacts (each impact's free response is what separates the effects), starting a
+    little before the first of them; with no impact, the last ``max_s`` (the steadiest part)."""
+    n = len(recording)
+    t = recording.time_s()
+    if n == 0 or t[-1] - t[0] <= max_s:
+        return 0, n, "the whole record"
+    per = max(int(round(max_s / float(np.median(np.diff(t))))), 2)
+    hit = np.any(recording.impact_force_n != 0.0, axis=1)
+    onsets = np.flatnonzero(hit & ~np.concatenate(([False], hit[:-1])))
+    if onsets.size == 0:
+        return n - per, n, f"the last {max_s:g} s (no impact in the record)"
+    lead = max(int(round(0.1 * per)), 1)
+    best, best_count = 0, -1
+    for i in onsets:
+        start = int(min(max(i - lead, 0), n - per))
+        count = int(np.sum((onsets >= start) & (onsets < start + per)))
+        if count > best_count:
+            best, best_count = start, count
+    return best, best + per, f"the {max_s:g} s holding the most impacts ({best_count} of {onsets.size})"
+
+
 @single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
 def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *, passes: int = 2,
-             library: tuple[Effect, ...] = LIBRARY) -> Diagnosis:
-    """Fit the nominal model, budget its residual, rank the candidate effects, tabulate before/after."""
+             library: tuple[Effect, ...] = LIBRARY, max_fit_window_s: float = MAX_FIT_WINDOW_S) -> Diagnosis:
+    """Fit the nominal model, budget its residual, rank the candidate effects, tabulate before/after.
+
+    A record longer than ``max_fit_window_s`` is diagnosed on one window of it (see
+    :func:`analysis_window`); ``summary()['data']['analysis_window']`` says which."""
+    full_n = len(recording)
+    start, stop, why = analysis_window(recording, max_fit_window_s)
+    window = None
+    if (start, stop) != (0, full_n):
+        t = recording.time_s()
+        window = {"start_s": float(t[start] - t[0]), "stop_s": float(t[stop - 1] - t[0]),
+                  "record_s": float(t[-1] - t[0]), "rule": why}
+        recording = recording.slice(start, stop)
     ctx = build_context(recording, rig, config, passes=passes)
     sol0, _, ho0 = nominal_solution(ctx)
     rk = rank_effects(ctx, library)
@@ -154,5 +194,12 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
         shown.append(("+ " + rk.best.name + " + " + rk.second.name, rk.second))
     for label, fit in shown:
         table.append(_row(ctx, label, fit.prediction_m, fit.held_out_rms_m, fit.coefficients))
+    data = data_accounting(recording, ctx)
+    if window is not None:
+        data["analysis_window"] = window
+        data["samples_in_record"] = full_n
+        data["warnings"].append(f"the record is {window['record_s']:.3g} s long: the fits ran on "
+                                f"{window['start_s']:.3f}-{window['stop_s']:.3f} s, {window['rule']} (memory and time "
+                                f"bound); diagnose other spans by cutting the record")
     return Diagnosis(ctx=ctx, ranking=rk, where=where, innovations=innov, nominal_prediction_m=sol0.prediction_m,
-                     table=table, data=data_accounting(recording, ctx))
+                     table=table, data=data)
