@@ -178,6 +178,47 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------------- simulate
+def _simulate_design(args: argparse.Namespace, rig) -> int:
+    """One record of a planner test (``plan`` prints these command lines), as an input bag."""
+    from ..bagio import write_input_bag
+    from ..config import load_rig_file
+    from ..identification.planner import candidate_designs
+    from ..identification.scenarios import simulate_design
+    from ..recording import RigRecording
+
+    rig_file = load_rig_file(args.rig)
+    expected = (rig.true_coefficients or rig_file.estimator.initial_coefficients).as_array()
+    designs = {d.name: d for d in candidate_designs(rig, expected, hammer_force_n=args.hammer_force_n)}
+    design = designs.get(args.design)
+    if design is None:
+        raise InputError(f"--design {args.design!r}: not a test of `rotor-estimator plan` for this rig; "
+                         f"choose one of: {'; '.join(designs)}")
+    if not 0 <= args.record < design.n_records:
+        raise InputError(f"--record: the test has {design.n_records} record(s): 0..{design.n_records - 1}")
+    if Path(args.out).exists():
+        raise BagError(f"bag {args.out} already exists; remove it or choose another output path")
+    sim = simulate_design(rig, design, seed=args.seed)[args.record]
+    dt = rig.sample_period_s
+    first = int(round(design.discard_initial_s / dt))
+    t = (np.arange(first, first + len(sim.record.t_s))) * dt
+    force = np.zeros((t.size, 2))
+    for imp in design.impacts:  # zero-order hold: the sample whose period holds the pulse carries it
+        k = int(np.floor(imp.start_s / dt + 1e-9)) - first
+        if 0 <= k < t.size:
+            force[k] += (imp.force_x_n, imp.force_y_n)
+    t0_ns = 1_700_000_000_000_000_000
+    rec = RigRecording(t0_ns + np.round(t * 1e9).astype(np.int64), sim.record.probes_m,
+                       t0_ns + np.round(sim.pulse_times_s * 1e9).astype(np.int64), force,
+                       {"command": "rotor-estimator simulate --design", "design": design.name, "record": args.record,
+                        "seed": args.seed})
+    write_input_bag(args.out, rec, block_size=args.block_size)
+    weight = design.trial_weights[args.record - 1] if args.record else None
+    print(f"wrote {args.out}: record {args.record} of '{design.name}' ({len(rec)} samples"
+          + (f", trial weight {weight.mass_kg * 1e3:.4g} g at {weight.radius_m * 1e3:.4g} mm, plane {weight.plane + 1}, "
+             f"{np.degrees(weight.phase_rad):.0f} deg" if weight else "") + ")")
+    return 0
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
 
@@ -188,6 +229,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from ..simulator import MILLER_HOWARD_IMPACT, Impact
 
     rig = load_rig_file(args.rig).rig
+    if args.design is not None:
+        return _simulate_design(args, rig)
     scenario = paper_scenario(args.scenario)
     if args.duration is not None:
         scenario = dataclasses.replace(scenario, duration_s=float(args.duration))
@@ -250,6 +293,11 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("--speed-end-rpm", type=float, default=None,
                    help="ramp the speed linearly from the rig's speed to this over the record (a coast-down "
                         "or run-up; e.g. --scenario imbalance --duration 2 --speed-end-rpm 3000)")
+    p.add_argument("--design", default=None, metavar="NAME",
+                   help="simulate a test of `rotor-estimator plan` by its name (plan prints the command lines)")
+    p.add_argument("--record", type=int, default=0, help="which record of --design (0: without trial weight)")
+    p.add_argument("--hammer-force-n", type=float, default=515.0, metavar="N",
+                   help="hammer peak force used to build the --design tests, N (as given to plan)")
     p.add_argument("--impacts", type=int, default=None,
                    help="replace the scenario's impacts by N hammer pulses (515 N, 50 us) alternating y and x, "
                         "evenly spaced over the recorded time")

@@ -68,6 +68,23 @@ class CandidateBound:
         return self.max_direct() <= target.direct and self.max_cross() <= target.cross
 
 
+def required_decel_rpm_per_s(design: TestDesign) -> float:
+    """The fastest speed change a design asks of the machine (rpm/s, over all its segments)."""
+    return max(abs(s.speed_end_rad_s - s.speed_start_rad_s) / s.duration_s / RPM for s in design.segments)
+
+
+def swept_critical_speeds_rad_s(design: TestDesign, critical_rad_s: list[float]) -> list[float]:
+    """The critical speeds a design passes through or dwells within 5 % of."""
+    out = []
+    for w in critical_rad_s:
+        for s in design.segments:
+            lo, hi = sorted((s.speed_start_rad_s, s.speed_end_rad_s))
+            if lo * 0.95 <= w <= hi * 1.05:
+                out.append(w)
+                break
+    return out
+
+
 def critical_speeds_rad_s(rig: RigConfig, coefficients: np.ndarray, speed_max_rad_s: float) -> list[float]:
     """Speeds below ``speed_max_rad_s`` where a rigid-body whirl frequency equals the speed
     (the modes a sweep must cross), by scanning the Campbell diagram of Eq. 2."""
@@ -82,10 +99,14 @@ def critical_speeds_rad_s(rig: RigConfig, coefficients: np.ndarray, speed_max_ra
     return sorted(out)
 
 
-def candidate_designs(rig: RigConfig, coefficients: np.ndarray, *, bearings16: bool = False) -> list[TestDesign]:
+def candidate_designs(rig: RigConfig, coefficients: np.ndarray, *, bearings16: bool = False,
+                      hammer_force_n: float = 515.0) -> list[TestDesign]:
     """A catalogue an engineer can run on ``rig``: constant speed (imbalance only, with trial
-    weights), 1-8 hammer hits (x/y alternating; at two stations for 16 coefficients),
-    coast-downs through the rigid-body modes of 0.25-4 s, and dwells near the critical speeds."""
+    weights), 1-8 hammer hits of ``hammer_force_n`` (x/y alternating; at two stations for 16
+    coefficients), coast-downs through the rigid-body modes of 0.25-8 s, and dwells near the
+    critical speeds."""
+    if not (math.isfinite(hammer_force_n) and hammer_force_n > 0):
+        raise ConfigError(f"plan.hammer_force_n: must be > 0 N, got {hammer_force_n!r}")
     w_max = rig.speed_rad_s
     rpm_max = w_max / RPM
     crit = critical_speeds_rad_s(rig, coefficients, w_max)
@@ -107,7 +128,8 @@ def candidate_designs(rig: RigConfig, coefficients: np.ndarray, *, bearings16: b
     for n, d in ((1, 0.125), (2, 0.25), (3, 0.5), (5, 0.5), (5, 1.0), (8, 1.0)):
         designs.append(multi_impact(f"{n} impact(s) in {d:g} s at {rpm_max:.0f} rpm" +
                                     (" (2 stations)" if bearings16 else ""), n, d + 0.03, rpm_max,
-                                    positions_m=positions, discard_initial_s=0.03, first_s=0.04))
+                                    positions_m=positions, discard_initial_s=0.03, first_s=0.04,
+                                    force_n=hammer_force_n))
     for d in (0.25, 0.5, 1.0, 2.0, 4.0, 8.0):
         designs.append(sweep(f"coast-down {rpm_max:.0f} -> {low_rpm:.0f} rpm in {d:g} s", rpm_max, low_rpm, d))
     for d in (0.5, 1.0, 2.0):
@@ -150,35 +172,61 @@ class Plan:
     target: Target
     candidates: tuple[CandidateBound, ...]   # sorted by machine time
     recommended: CandidateBound | None
+    max_decel_rpm_per_s: float | None = None
+    critical_speeds_rad_s: tuple[float, ...] = ()
+
+    def feasible(self, c: CandidateBound) -> bool:
+        """The machine can run it: no speed change faster than the achievable deceleration."""
+        return self.max_decel_rpm_per_s is None or required_decel_rpm_per_s(c.design) <= self.max_decel_rpm_per_s
 
     def format(self) -> str:
         lines = [f"Target: direct <= {100 * self.target.direct:g}%, cross-coupled <= {100 * self.target.cross:g}% "
                  f"(CRLB std relative to each coefficient)"]
-        head = f"{'test':<70}{'time s':>8}{'max direct %':>14}{'max cross %':>13}  meets"
+        head = f"{'test':<70}{'time s':>8}{'rpm/s':>8}{'max direct %':>14}{'max cross %':>13}  meets"
         lines += [head, "-" * len(head)]
         for c in self.candidates:
             fmt = (lambda v: f"{100 * v:.3g}" if np.isfinite(v) and v < 1e4 else "inf")
             mark = "yes" if c.meets(self.target) else "no"
+            if not self.feasible(c):
+                mark = f"no (needs {required_decel_rpm_per_s(c.design):.0f} rpm/s)"
             if c is self.recommended:
                 mark += "  <== recommended"
-            lines.append(f"{c.design.name:<70}{c.design.total_time_s:>8.3g}{fmt(c.max_direct()):>14}"
+            lines.append(f"{c.design.name:<70}{c.design.total_time_s:>8.3g}"
+                         f"{required_decel_rpm_per_s(c.design):>8.0f}{fmt(c.max_direct()):>14}"
                          f"{fmt(c.max_cross()):>13}  {mark}")
         if self.recommended is None:
-            lines.append("No candidate meets the target: lower the noise (average, better probes), lengthen the "
-                         "sweep, or relax the target.")
+            blocked = [c for c in self.candidates if c.meets(self.target) and not self.feasible(c)]
+            lines.append("No candidate meets the target" + (
+                f" at {self.max_decel_rpm_per_s:g} rpm/s ({len(blocked)} would with a faster speed change)"
+                if blocked else "") + ": lower the noise (average, better probes), lengthen the sweep, add "
+                "impacts or trial weights, or relax the target.")
         else:
             r = self.recommended
             lines.append(f"\nRecommended: {r.design.name} ({r.design.description}); machine time "
                          f"{r.design.total_time_s:g} s.")
             lines.append("Per-coefficient CRLB of the recommended test (% of value): " + ", ".join(
                 f"{n} {100 * v:.3g}" for n, v in zip(_names(r.relative.size), r.relative)))
+            crit = swept_critical_speeds_rad_s(r.design, list(self.critical_speeds_rad_s))
+            all_crit = ", ".join(f"{w / RPM:.0f} rpm ({w / (2 * math.pi):.1f} Hz)" for w in self.critical_speeds_rad_s)
+            lines.append(f"Critical speeds of the rig (rigid-body modes at the expected coefficients): "
+                         f"{all_crit or 'none below the running speed'}; the test passes "
+                         + (", ".join(f"{w / RPM:.0f} rpm" for w in crit) if crit else "none of them"))
+            for k, w in enumerate(r.design.trial_weights):
+                lines.append(f"Trial weight of record {k + 1}: {w.mass_kg * 1e3:.4g} g at {w.radius_m * 1e3:.4g} mm, "
+                             f"imbalance plane {w.plane + 1}, {math.degrees(w.phase_rad):.0f} deg from the keyphasor mark")
+            if r.design.impacts:
+                f = max(max(abs(i.force_x_n), abs(i.force_y_n)) for i in r.design.impacts)
+                lines.append(f"Hammer: {len(r.design.impacts)} hit(s) of {f:g} N peak, "
+                             f"{r.design.impacts[0].duration_s * 1e6:.0f} us")
         return "\n".join(lines)
 
     def as_rows(self) -> list[dict]:
         rows = []
         for c in self.candidates:
             for n, s, r in zip(_names(c.std.size), c.std, c.relative):
-                rows.append({"test": c.design.name, "time_s": c.design.total_time_s, "coefficient": n,
+                rows.append({"test": c.design.name, "time_s": c.design.total_time_s,
+                             "required_decel_rpm_per_s": required_decel_rpm_per_s(c.design),
+                             "machine_can_run_it": self.feasible(c), "coefficient": n,
                              "crlb_std": float(s), "crlb_relative": float(r), "meets_target": c.meets(self.target),
                              "recommended": c is self.recommended, "noise_std_m": c.noise_std_m})
         return rows
@@ -193,7 +241,7 @@ def _names(n: int) -> tuple[str, ...]:
 
 def plan(rig: RigConfig, target: Target, *, coefficients: np.ndarray | None = None,
          designs: list[TestDesign] | None = None, unknown_imbalance: bool = True, bearings16: bool = False,
-         noise_std_m: float | None = None, progress=None) -> Plan:
+         noise_std_m: float | None = None, progress=None, max_decel_rpm_per_s: float | None = None) -> Plan:
     """Evaluate the candidates and recommend the shortest test meeting ``target``."""
     if coefficients is None:
         if rig.true_coefficients is None:
@@ -209,5 +257,12 @@ def plan(rig: RigConfig, target: Target, *, coefficients: np.ndarray | None = No
         if progress:
             progress(1)
     out.sort(key=lambda c: (c.design.total_time_s, len(c.design.impacts), c.design.n_records))
-    feasible = [c for c in out if c.meets(target)]
-    return Plan(target=target, candidates=tuple(out), recommended=feasible[0] if feasible else None)
+    if max_decel_rpm_per_s is not None and not max_decel_rpm_per_s > 0:
+        raise ConfigError(f"plan.max_decel_rpm_per_s: must be > 0, got {max_decel_rpm_per_s!r}")
+    crit = tuple(critical_speeds_rad_s(rig, coefficients, rig.speed_rad_s))
+    result = Plan(target=target, candidates=tuple(out), recommended=None, max_decel_rpm_per_s=max_decel_rpm_per_s,
+                  critical_speeds_rad_s=crit)
+    feasible = [c for c in out if c.meets(target) and result.feasible(c)]
+    from dataclasses import replace
+
+    return replace(result, recommended=feasible[0] if feasible else None)
