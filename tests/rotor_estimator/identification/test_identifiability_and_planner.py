@@ -69,7 +69,7 @@ def test_plan_command_json(capsys, seed_rig, monkeypatch):
     from rotor_estimator.commands import identify_cmd
     from rotor_estimator.identification import planner
 
-    monkeypatch.setattr(planner, "candidate_designs", lambda rig, c, bearings16=False: [
+    monkeypatch.setattr(planner, "candidate_designs", lambda rig, c, bearings16=False, hammer_force_n=515.0: [
         sweep("cd 0.25 s", 20000, 3000, 0.25)])
     parser = argparse.ArgumentParser()
     identify_cmd.add_parsers(parser.add_subparsers(dest="command"))
