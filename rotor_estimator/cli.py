@@ -116,7 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=cli_types.seed, default=1, help="first noise seed (default 1)")
     p.add_argument("--rig", type=Path, default=None, help="rig YAML (default: the bundled seed rig)")
     p.add_argument("--json", action="store_true", help="print JSON rows instead of the table")
-    p.add_argument("--plots", metavar="DIR", default=None, help="write PNG figures (Fig. 4 and 5 analogues) to DIR")
+    p.add_argument("--report", "--plots", dest="plots", metavar="DIR", default=None,
+                   help="write PNG figures (Fig. 4 and 5 analogues) to DIR (--plots: the old name)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_reproduce)
 

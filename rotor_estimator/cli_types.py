@@ -40,3 +40,21 @@ passes = int_in_range(1, PASSES_MAX, "the number of passes")
 positive_int = int_in_range(1, None, "a positive count")
 #: A count that may be 0 (``--burn-in``).
 non_negative_int = int_in_range(0, None, "a count")
+
+
+def add_bag_argument(parser: argparse.ArgumentParser, help_text: str) -> None:
+    """The input bag of a one-bag command, as ``BAG`` or ``--bag BAG`` (as `identify` and
+    `virtual-sensing` take it): one spelling works everywhere."""
+    parser.add_argument("bag", nargs="?", metavar="BAG", default=None, help=help_text)
+    parser.add_argument("--bag", dest="bag_option", metavar="BAG", default=None, help="the same, as an option")
+
+
+def bag_from_args(args: argparse.Namespace) -> str:
+    """The bag given as ``BAG`` or ``--bag`` (exactly one of them)."""
+    from .errors import InputError
+
+    given = [b for b in (args.bag, getattr(args, "bag_option", None)) if b is not None]
+    if len(given) != 1:
+        raise InputError("give the input bag once, as BAG or --bag BAG" if given else
+                         "no input bag: give BAG or --bag BAG")
+    return str(given[0])

@@ -72,7 +72,7 @@ def add_virtual_sensing_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--write-input-bag", type=Path, metavar="OUT",
                    help="also write the input data (channels and keyphasor pulses at the shaft angle's zero "
                         "crossings) as a multi-sensor bag, e.g. to replay it to virtual_sensing_node")
-    p.add_argument("--out-bag", type=Path, metavar="OUT", help="write station estimates (and leave-one-out "
+    p.add_argument("--out", "--out-bag", dest="out_bag", type=Path, metavar="OUT", help="write station estimates (and leave-one-out "
                                                                 "predictions) as topics to a new MCAP bag")
     p.add_argument("--strict", action="store_true", help="exit 1 when a coverage is off by more than the tolerance")
     p.add_argument("--json", action="store_true", help="machine-readable output")

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .. import cli_types
+from ..cli_types import add_bag_argument, bag_from_args
 from ..errors import BagError, InputError, NoDataError
 from ..identification.identifiability import LABEL_RULE, NOT_DETERMINED
 
@@ -169,6 +170,7 @@ def format_replay(r: dict[str, Any]) -> str:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
+    args.bag = bag_from_args(args)
     if not args.publish_rate_hz > 0:
         raise InputError(f"--publish-rate must be > 0 Hz, got {args.publish_rate_hz:g}")
     result = replay_bag(args.bag, args.rig, args.out, progress=not args.no_progress, salvage=args.salvage,
@@ -272,7 +274,7 @@ def cmd_bench_live(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------------- parsers
 def add_parsers(subparsers: Any) -> None:
     p = subparsers.add_parser("replay", help="run the estimator node's logic over a bag (no ROS graph)")
-    p.add_argument("bag", type=Path, help="rosbag2 directory or .mcap file with the input topics")
+    add_bag_argument(p, "rosbag2 directory or .mcap file with the input topics")
     p.add_argument("--rig", type=Path, default=None, help="rig YAML (default: the bundled seed rig)")
     p.add_argument("--out", type=Path, default=None, help="write the node's output topics to this new MCAP bag")
     p.add_argument("--publish-rate", dest="publish_rate_hz", type=float, default=200.0, metavar="HZ",

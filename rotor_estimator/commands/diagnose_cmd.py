@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 
 from .. import cli_types
+from ..cli_types import add_bag_argument, bag_from_args
 
 
 def _load(path: Path, salvage: bool = False):
@@ -37,7 +38,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 
     warnings.simplefilter("ignore", RuntimeWarning)
     rig_file = load_rig_file(args.rig)
-    recording = _load(Path(args.bag), args.salvage)
+    recording = _load(Path(bag_from_args(args)), args.salvage)
     d = diagnose(recording, rig_file.rig, rig_file.estimator, passes=args.passes)
     summary = write_report(d, args.report) if args.report else d.summary()
     for text in summary["data"]["warnings"]:
@@ -73,7 +74,7 @@ def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
 def add_parsers(subparsers) -> None:
     p = subparsers.add_parser("diagnose", help="diagnose the sim-to-real gap of a recording (where, which effect, "
                                                "how far it shrinks)")
-    p.add_argument("bag", metavar="BAG", help="input bag (rosbag2 MCAP, e.g. from `rotor-estimator import`) or .npz")
+    add_bag_argument(p, "input bag (rosbag2 MCAP, e.g. from `rotor-estimator import`) or .npz")
     p.add_argument("--salvage", action="store_true", help="use the intact part of a damaged bag (the messages lost are counted and reported on stderr); without it a damaged bag is an error")
     p.add_argument("--rig", type=Path, required=True, help="rig YAML (bearing coefficients are estimated)")
     p.add_argument("--report", metavar="DIR", default=None, help="write report.md, summary.json and PNGs to DIR")

@@ -322,7 +322,8 @@ def add_parsers(subparsers) -> None:
                    help="8 coefficients (identical bearings, default) or 16 (each bearing its own)")
     i.add_argument("--speed-order", type=int, default=0,
                    help="> 0: coefficients as speed polynomials of this order (prints the table)")
-    i.add_argument("--plots", metavar="DIR", default=None, help="coefficient-versus-speed figure into DIR")
+    i.add_argument("--report", "--plots", dest="plots", metavar="DIR", default=None,
+                   help="write the coefficient-versus-speed figure into DIR (--plots: the old name)")
     i.add_argument("--json", action="store_true")
     i.set_defaults(func=cmd_identify)
 

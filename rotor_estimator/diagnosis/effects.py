@@ -498,13 +498,40 @@ class TimingSkew(Effect):
         return flat.reshape(out.shape)
 
 
+@dataclass(frozen=True)
+class HammerForceScale(Effect):
+    """The impact hammer's sensitivity is off: the force acting is ``(1 + s)`` times the recorded one.
+
+    One linear parameter, the response to the recorded impacts (the step input of Eq. 5); nothing to fit
+    in a record without an impact. The filter cannot see this error in its innovations (the coefficients
+    absorb it): only the shape of the free response after the impact against the 1X response tells it."""
+
+    forcing: ClassVar[bool] = True
+    name: ClassVar[str] = "hammer_force_scale"
+    description: ClassVar[str] = "impact hammer sensitivity error (recorded force scaled)"
+
+    def lin_names(self, ctx):
+        return ("force_scale_error",) if np.any(ctx.known_step_n) else ()
+
+    def basis(self, ctx, nl):
+        if not np.any(ctx.known_step_n):
+            return None, np.zeros((ctx.t_s.size, 4, 0))
+        col = ctx.response(np.zeros_like(ctx.known_smooth_n), ctx.known_step_n)
+        return None, col[:, :, None]
+
+    def physical(self, nl, lin):
+        if not len(lin):
+            return {}
+        return {"hammer_force_scale": 1.0 + float(lin[0]), "hammer_sensitivity_error_percent": 100.0 * float(lin[0])}
+
+
 from .flexible_shaft import FlexibleShaft  # noqa: E402 - it builds on Effect and the helpers above
 
 #: The candidate library, in report order (``shaft_bending`` is the coupled equivalent beam with the
 #: decoupled pinned-pinned mode of :class:`ShaftBending` as its second variant).
 LIBRARY: tuple[Effect, ...] = (ResidualUnbalance(), TachometerOffset(), ProbeRunout(), Misalignment(),
                                BearingCubic(), PedestalFlexibility(), FlexibleShaft(), ProbeGainOrientation(),
-                               TimingSkew())
+                               TimingSkew(), HammerForceScale())
 EFFECT_NAMES: tuple[str, ...] = tuple(e.name for e in LIBRARY)
 
 
