@@ -59,6 +59,8 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
     written = 0
     final = None
     history: list = []
+    if out_bag is None and csv_path is None:  # nothing writes the intermediate estimates: make fewer
+        publish_period_s = max(publish_period_s, 0.05)
     for k in range(passes):
         pipe = EstimatorPipeline(rig_file.rig, rig_file.estimator, None,
                                  AlignmentConfig(sample_rate_hz=rig_file.rig.sample_rate_hz), publish_period_s,

@@ -16,7 +16,9 @@ def _replay_peak_rss_mb(bag) -> float:
     code = ("import resource, sys\n"
             "from rotor_estimator.cli import main\n"
             f"rc = main(['replay', {str(bag)!r}, '--no-progress'])\n"
-            "print('PEAK_RSS_KB', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\n"
+            # VmHWM: this process's own peak; ru_maxrss would carry the forking pytest worker's over exec
+            "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM:')][0].split()[1]\n"
+            "print('PEAK_RSS_KB', hwm, file=sys.stderr)\n"
             "sys.exit(rc)\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=1200,
                           env={**os.environ, "OMP_NUM_THREADS": "1"})
