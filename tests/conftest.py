@@ -19,3 +19,28 @@ def seed_rig(seed_rig_file):
 def impact_sim(seed_rig):
     """The paper's imbalance+impact case, one seeded run."""
     return simulate(seed_rig, paper_scenario("imbalance+impact"), seed=11)
+
+
+@pytest.fixture(scope="session")
+def cli_peak_rss():
+    """Run ``rotor-estimator ARGS`` in a fresh process; return (stdout, its own peak RSS in MB).
+
+    The peak is the child's VmHWM: ``ru_maxrss`` would carry the forking pytest worker's peak
+    over exec and measure the worker, not the command."""
+    import os
+    import subprocess
+    import sys
+
+    def run(args: list[str]) -> tuple[str, float]:
+        code = ("import sys\n"
+                "from rotor_estimator.cli import main\n"
+                f"rc = main({list(map(str, args))!r})\n"
+                "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM:')][0].split()[1]\n"
+                "print('PEAK_RSS_KB', hwm, file=sys.stderr)\n"
+                "sys.exit(rc)\n")
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=1200,
+                              env={**os.environ, "OMP_NUM_THREADS": "1"})
+        assert done.returncode == 0, done.stderr[-2000:]
+        return done.stdout, int(done.stderr.split("PEAK_RSS_KB")[1].split()[0]) / 1024.0
+
+    return run

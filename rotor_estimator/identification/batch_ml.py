@@ -103,8 +103,10 @@ class _Problem:
 def _levenberg_marquardt(prob: _Problem, p: np.ndarray, b_fixed: np.ndarray, max_iterations: int, tol: float):
     cost, grad, fim = prob.evaluate(p, b_fixed)
     if not np.isfinite(cost):
-        raise InputError("batch fit: the model response from the initial guess is not finite "
-                         "(unstable initial coefficients?)")
+        raise InputError("batch fit: the model response from the initial guess is not finite. The imbalance "
+                         f"used ({np.round(b_fixed, 9).tolist()} kg*m per plane, cos/sin; plus any trial weights) "
+                         "drives it: check the stated imbalance and trial weights (a linear rotor with stable "
+                         "initial coefficients stays finite for any finite imbalance) or the initial coefficients")
     mu = 1e-3
     it = 0
     converged = False

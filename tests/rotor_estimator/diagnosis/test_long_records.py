@@ -2,9 +2,6 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -37,7 +34,7 @@ def test_analysis_window_is_the_whole_short_record_and_the_busiest_window_of_a_l
 
 
 @pytest.mark.slow
-def test_a_60_s_record_is_diagnosed_under_500_mb_and_says_which_window_it_fitted(tmp_path):
+def test_a_60_s_record_is_diagnosed_under_500_mb_and_says_which_window_it_fitted(tmp_path, cli_peak_rss):
     """issue: ~150 MB per second of record (10 GB for 60 s). Now the peak RSS of `diagnose` on 60 s with
     30 impacts stays under 500 MB, and the JSON names the fitted window."""
     rig = load_rig_file().rig
@@ -47,19 +44,9 @@ def test_a_60_s_record_is_diagnosed_under_500_mb_and_says_which_window_it_fitted
                    seed=5).recording
     bag = write_input_bag(tmp_path / "long", rec)
     del rec
-    code = ("import json, resource, sys\n"
-            "from rotor_estimator.cli import main\n"
-            f"rc = main(['diagnose', {str(bag)!r}, '--rig', {str(SEED_RIG_PATH)!r}, '--json'])\n"
-            # VmHWM: this process's own peak; ru_maxrss would carry the forking pytest worker's over exec
-            "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM:')][0].split()[1]\n"
-            "print('PEAK_RSS_KB', hwm, file=sys.stderr)\n"
-            "sys.exit(rc)\n")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
-    assert done.returncode == 0, done.stderr[-2000:]
-    summary = json.loads(done.stdout)
+    out, peak_mb = cli_peak_rss(['diagnose', bag, '--rig', SEED_RIG_PATH, '--json'])
+    summary = json.loads(out)
     window = summary["data"]["analysis_window"]
     assert window["stop_s"] - window["start_s"] <= MAX_FIT_WINDOW_S and window["record_s"] > 59
     assert summary["data"]["samples_in_record"] > 1_000_000
-    peak_mb = int(done.stderr.split("PEAK_RSS_KB")[1].split()[0]) / 1024.0
     assert peak_mb < 500, f"peak RSS {peak_mb:.0f} MB"
