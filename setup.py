@@ -60,7 +60,6 @@ setup(
     zip_safe=True,
     maintainer="rotor_estimator developers",
     maintainer_email="dev@rotor-estimator.invalid",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "rotor-estimator = rotor_estimator.cli:main",
