@@ -62,10 +62,10 @@ setup(
     maintainer_email="dev@rotor-estimator.invalid",
     entry_points={
         "console_scripts": [
-            "rotor-estimator = rotor_estimator.cli:main",
-            "estimator_node = rotor_estimator.nodes.estimator_node:main",
-            "simulator_node = rotor_estimator.nodes.simulator_node:main",
-            "virtual_sensing_node = rotor_estimator.nodes.virtual_sensing_node:main",
+            "rotor-estimator = rotor_estimator.cli.main:main",
+            "estimator_node = rotor_estimator.ros.estimator_node:main",
+            "simulator_node = rotor_estimator.ros.simulator_node:main",
+            "virtual_sensing_node = rotor_estimator.ros.virtual_sensing_node:main",
         ],
     },
 )

@@ -18,7 +18,7 @@ def main(argv: list[str] | None = None) -> int:
 
     for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one BLAS thread per worker
         os.environ.setdefault(k, "1")
-    from rotor_estimator.diagnosis.bench import format_score, run
+    from rotor_estimator.bench.diagnosis import format_score, run
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", type=int, default=36)

@@ -13,7 +13,7 @@ of it; ``--methods ekf ekf+rts batch-ml`` takes ~3 minutes).
 """
 import sys
 
-from rotor_estimator.commands.identify_cmd import add_bench_parsers
+from rotor_estimator.cli.identify import add_bench_parsers
 
 
 def main(argv=None) -> int:

@@ -5,7 +5,7 @@ Same as ``rotor-estimator bench speed [--json]``. Targets: <= 10 us/sample, >= 2
 """
 import sys
 
-from rotor_estimator.cli import main
+from rotor_estimator.cli.main import main
 
 if __name__ == "__main__":
     sys.exit(main(["bench", "speed", *sys.argv[1:]]))

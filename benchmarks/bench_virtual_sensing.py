@@ -11,7 +11,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rotor_estimator.virtual_sensing_cli import main  # noqa: E402
+from rotor_estimator.cli.virtual_sensing import main  # noqa: E402
 
 if __name__ == "__main__":
     sys.exit(main(["bench", "virtual-sensing", *sys.argv[1:]]))

@@ -6,7 +6,7 @@ Same as ``rotor-estimator reproduce miller-howard [--runs N] [--json] [--plots D
 """
 import sys
 
-from rotor_estimator.cli import main
+from rotor_estimator.cli.main import main
 
 if __name__ == "__main__":
     sys.exit(main(["reproduce", "miller-howard", *sys.argv[1:]]))

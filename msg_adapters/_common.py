@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any, Collection
 
-from rotor_estimator.errors import InputError
+from rotor_estimator.core.errors import InputError
 
 NS_PER_S = 1_000_000_000
 

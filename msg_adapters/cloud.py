@@ -10,10 +10,10 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from rotor_estimator.errors import InputError
+from rotor_estimator.core.errors import InputError
 
-from ._common import expect_type
-from .factory import MessageFactory, make_header
+from msg_adapters._common import expect_type
+from msg_adapters.factory import MessageFactory, make_header
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 

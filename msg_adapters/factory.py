@@ -15,7 +15,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ._common import ns_to_sec_nanosec
+from msg_adapters._common import ns_to_sec_nanosec
 
 
 class MessageFactory(Protocol):

@@ -14,11 +14,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from rotor_estimator.errors import InputError
+from rotor_estimator.core.errors import InputError
 
-from ._common import expect_type, header_stamp_ns, stamp_to_ns
-from .cloud import FLOAT64, POINTCLOUD2, UINT32, cloud_columns, cloud_from_columns
-from .factory import MessageFactory, make_header, make_time
+from msg_adapters._common import expect_type, header_stamp_ns, stamp_to_ns
+from msg_adapters.cloud import FLOAT64, POINTCLOUD2, UINT32, cloud_columns, cloud_from_columns
+from msg_adapters.factory import MessageFactory, make_header, make_time
 
 POINT_STAMPED = "geometry_msgs/msg/PointStamped"
 WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"

@@ -21,11 +21,11 @@ from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from rotor_estimator.config import COEFFICIENT_NAMES_WITH_UNITS
-from rotor_estimator.errors import InputError
+from rotor_estimator.core.config import COEFFICIENT_NAMES_WITH_UNITS
+from rotor_estimator.core.errors import InputError
 
-from ._common import expect_type, header_stamp_ns
-from .factory import MessageFactory, make_header
+from msg_adapters._common import expect_type, header_stamp_ns
+from msg_adapters.factory import MessageFactory, make_header
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"

@@ -40,13 +40,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from rotor_estimator.errors import InputError
+from rotor_estimator.core.errors import InputError
 
-from ._common import expect_type, header_stamp_ns
-from .cloud import FLOAT64, POINTCLOUD2, UINT32, cloud_columns, cloud_from_columns
-from .factory import MessageFactory
-from .inputs import PROBE_FIELDS, check_block
-from .outputs import _joint_state, _joint_values
+from msg_adapters._common import expect_type, header_stamp_ns
+from msg_adapters.cloud import FLOAT64, POINTCLOUD2, UINT32, cloud_columns, cloud_from_columns
+from msg_adapters.factory import MessageFactory
+from msg_adapters.inputs import PROBE_FIELDS, check_block
+from msg_adapters.outputs import _joint_state, _joint_values
 
 ACCEL_FIELDS: dict[str, int] = {"ax_m_s2": FLOAT64, "ay_m_s2": FLOAT64, "t_offset_ns": UINT32}
 SENSOR_FIELDS: dict[str, dict[str, int]] = {"probe": PROBE_FIELDS, "accelerometer": ACCEL_FIELDS}

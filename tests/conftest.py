@@ -1,8 +1,8 @@
 """Shared fixtures: the seed rig and small simulations."""
 import pytest
 
-from rotor_estimator.config import load_rig_file
-from rotor_estimator.simulator import paper_scenario, simulate
+from rotor_estimator.core.config import load_rig_file
+from rotor_estimator.core.simulator import paper_scenario, simulate
 
 
 @pytest.fixture(scope="session")
@@ -33,7 +33,7 @@ def cli_peak_rss():
 
     def run(args: list[str]) -> tuple[str, float]:
         code = ("import sys\n"
-                "from rotor_estimator.cli import main\n"
+                "from rotor_estimator.cli.main import main\n"
                 f"rc = main({list(map(str, args))!r})\n"
                 "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM:')][0].split()[1]\n"
                 "print('PEAK_RSS_KB', hwm, file=sys.stderr)\n"

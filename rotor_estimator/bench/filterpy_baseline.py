@@ -1,7 +1,7 @@
 """The same EKF written the straightforward way with filterpy's ``ExtendedKalmanFilter``.
 
 Prediction uses the numpy reference RK4 step and its Jacobian
-(:mod:`rotor_estimator.ekf_reference`); filterpy does ``P = F P F^T + Q`` and the
+(:mod:`rotor_estimator.bench.reference_ekf`); filterpy does ``P = F P F^T + Q`` and the
 Joseph-form update. This is the speed baseline and an independent check of the
 compiled kernel's update arithmetic.
 """
@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
-from .. import ekf_reference as ref
-from ..ekf import FilterModel
+from rotor_estimator.bench import reference_ekf as ref
+from rotor_estimator.core.ekf import FilterModel
 
 
 class FilterpyRotorEKF(ExtendedKalmanFilter):

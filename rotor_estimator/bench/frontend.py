@@ -26,7 +26,7 @@ def _best_of(fn, repeats: int = 5) -> float:
 
 def aligner_seconds(n_samples: int) -> float:
     """Two probe planes in 200-sample blocks through :class:`SampleAligner`, popped after every pair."""
-    from ..alignment import SampleAligner
+    from rotor_estimator.core.alignment import SampleAligner
 
     k = np.arange(n_samples)
     t = (1_000_000_000 + k * PERIOD_NS).astype(np.int64)
@@ -46,7 +46,7 @@ def aligner_seconds(n_samples: int) -> float:
 
 def tachometer_seconds(n_queries: int) -> float:
     """``ShaftAngleTracker.query`` once per sample (the live node's per-sample angle)."""
-    from ..tachometer import ShaftAngleTracker
+    from rotor_estimator.core.tachometer import ShaftAngleTracker
 
     trk = ShaftAngleTracker()
     pulses = [1_000_000_000 + j * 3_000_000 for j in range(20)]

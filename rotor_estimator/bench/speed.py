@@ -9,12 +9,12 @@ import time
 
 import numpy as np
 
-from ..config import load_rig_file
-from ..ekf import StreamingEKF
-from ..offline import shaft_inputs_from_recording
-from ..simulator import paper_scenario, simulate
-from .filterpy_baseline import run_filterpy
-from .frontend import run as run_frontend
+from rotor_estimator.core.config import load_rig_file
+from rotor_estimator.core.ekf import StreamingEKF
+from rotor_estimator.core.offline import shaft_inputs_from_recording
+from rotor_estimator.core.simulator import paper_scenario, simulate
+from rotor_estimator.bench.filterpy_baseline import run_filterpy
+from rotor_estimator.bench.frontend import run as run_frontend
 
 
 def run(n_filterpy_samples: int = 1500, repeats: int = 5, rig_path=None) -> dict:

@@ -11,13 +11,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import COEFFICIENT_NAMES_WITH_UNITS, EstimatorConfig, RigConfig
-from ..linear_filters import single_threaded_blas
-from ..recording import RigRecording
-from .context import WARMUP_S, FitContext, build_context
-from .effects import LIBRARY, Effect
-from .ranking import HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking, nominal_solution, rank_effects
-from .residuals import CHANNELS, budget, innovation_consistency
+from rotor_estimator.core.config import COEFFICIENT_NAMES_WITH_UNITS, EstimatorConfig, RigConfig
+from rotor_estimator.core.linear_filters import single_threaded_blas
+from rotor_estimator.core.recording import RigRecording
+from rotor_estimator.diagnosis.context import WARMUP_S, FitContext, build_context
+from rotor_estimator.diagnosis.effects import LIBRARY, Effect
+from rotor_estimator.diagnosis.ranking import HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking, nominal_solution, rank_effects
+from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
 SCHEMA_VERSION = 3  # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance; 3: data
 

@@ -20,13 +20,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..config import EstimatorConfig, RigConfig
-from ..errors import InputError
-from ..linear_filters import single_threaded_blas
-from ..model import RotorMatrices, imbalance_force, impact_force, rotor_matrices
-from ..recording import RigRecording
-from . import models
-from .linsim import SpeedSchedule, simulate_linear
+from rotor_estimator.core.config import EstimatorConfig, RigConfig
+from rotor_estimator.core.errors import InputError
+from rotor_estimator.core.linear_filters import single_threaded_blas
+from rotor_estimator.core.model import RotorMatrices, imbalance_force, impact_force, rotor_matrices
+from rotor_estimator.core.recording import RigRecording
+from rotor_estimator.diagnosis import models
+from rotor_estimator.diagnosis.linsim import SpeedSchedule, simulate_linear
 
 #: Scale of the 8 coefficients in the output-error fit (N/m and N*s/m).
 COEFFICIENT_SCALE = np.array([1e5] * 4 + [1e3] * 4)
@@ -48,7 +48,7 @@ class ShaftTrack:
 
 def shaft_track(recording: RigRecording) -> ShaftTrack:
     """Shaft states from the keyphasor pulses (the offline tachometer fit of the core)."""
-    from ..offline import shaft_inputs_from_recording
+    from rotor_estimator.core.offline import shaft_inputs_from_recording
 
     s = shaft_inputs_from_recording(recording)
     return ShaftTrack(s.angle_rad, s.speed_rad_s, s.accel_rad_s2, s.valid)
@@ -183,7 +183,7 @@ def _project_dc(e: np.ndarray) -> np.ndarray:
 def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *, passes: int = 2,
                   shaft: ShaftTrack | None = None, max_nfev: int = 30) -> FitContext:
     """EKF, then output-error refinement of the 8 coefficients; returns the fitting context."""
-    from ..offline import ShaftInputs, estimate
+    from rotor_estimator.core.offline import ShaftInputs, estimate
 
     if len(recording) < 400:
         raise InputError(f"diagnosis needs at least 400 probe samples, got {len(recording)}")

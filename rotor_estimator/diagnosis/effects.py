@@ -20,10 +20,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..model import imbalance_force
-from . import models
-from .context import FitContext
-from .linsim import simulate_cubic, simulate_linear
+from rotor_estimator.core.model import imbalance_force
+from rotor_estimator.diagnosis import models
+from rotor_estimator.diagnosis.context import FitContext
+from rotor_estimator.diagnosis.linsim import simulate_cubic, simulate_linear
 
 CHANNELS = ("xp1", "yp1", "xp2", "yp2")
 UNIT_UNBALANCE_KG_M = 1e-6   # 1 g*mm
@@ -525,7 +525,7 @@ class HammerForceScale(Effect):
         return {"hammer_force_scale": 1.0 + float(lin[0]), "hammer_sensitivity_error_percent": 100.0 * float(lin[0])}
 
 
-from .flexible_shaft import FlexibleShaft  # noqa: E402 - it builds on Effect and the helpers above
+from rotor_estimator.diagnosis.flexible_shaft import FlexibleShaft  # noqa: E402 - it builds on Effect and the helpers above
 
 #: The candidate library, in report order (``shaft_bending`` is the coupled equivalent beam with the
 #: decoupled pinned-pinned mode of :class:`ShaftBending` as its second variant).

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .context import COEFFICIENT_SCALE, FitContext
+from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, FitContext
 
 
 @dataclass(frozen=True)

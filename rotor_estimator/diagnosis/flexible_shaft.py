@@ -59,13 +59,13 @@ from typing import ClassVar
 import numpy as np
 import scipy.linalg
 
-from ..config import RigConfig
-from ..flexible.fe_rotor import hermite_shape, subdivide
-from ..model import RotorMatrices, damping_matrix, point_force_weights, rotor_matrices, stiffness_matrix
-from . import models
-from .context import FitContext
-from .effects import Effect, rotating_mass_force
-from .linsim import simulate_linear
+from rotor_estimator.core.config import RigConfig
+from rotor_estimator.core.flexible.fe_rotor import hermite_shape, subdivide
+from rotor_estimator.core.model import RotorMatrices, damping_matrix, point_force_weights, rotor_matrices, stiffness_matrix
+from rotor_estimator.diagnosis import models
+from rotor_estimator.diagnosis.context import FitContext
+from rotor_estimator.diagnosis.effects import Effect, rotating_mass_force
+from rotor_estimator.diagnosis.linsim import simulate_linear
 
 #: Free-free bending modes kept per plane (plus one residual-flexibility shape per bearing).
 N_FREE_MODES = 3

@@ -10,7 +10,7 @@ augmented with pedestal or modal states) each sample period is advanced exactly,
 with ``Phi = expm(A h)`` and the first-order-hold input matrices from the block
 exponential ``expm([[A h, B h, 0], [0, 0, I], [0, 0, 0]]) = [[Phi, Gamma1, Gamma2], ...]``.
 Smooth forcing ``u_s`` (imbalance, harmonic forces) is interpolated linearly between
-samples; step forcing ``u_z`` (impact, zero-order hold per :mod:`rotor_estimator.recording`)
+samples; step forcing ``u_z`` (impact, zero-order hold per :mod:`rotor_estimator.core.recording`)
 is held. ``A`` may change with speed: it is rebuilt per block of samples (piecewise
 constant speed), cached by speed.
 
@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 from scipy.linalg import expm
 
-from .._jit import njit
+from rotor_estimator.core.jit import njit
 
 #: Samples per block over which the speed (and so A) is held constant.
 BLOCK_SAMPLES = 256

@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import RigConfig
-from ..model import RotorMatrices, damping_matrix, point_force_weights, state_matrix, stiffness_matrix
+from rotor_estimator.core.config import RigConfig
+from rotor_estimator.core.model import RotorMatrices, damping_matrix, point_force_weights, state_matrix, stiffness_matrix
 
 
 def rigid_state_matrix(mats: RotorMatrices, coefficients: np.ndarray, speed_rad_s: float) -> np.ndarray:
-    """8x8 ``A`` of Eq. 2 with state ``[v, z]`` (the core's :func:`rotor_estimator.model.state_matrix`)."""
+    """8x8 ``A`` of Eq. 2 with state ``[v, z]`` (the core's :func:`rotor_estimator.core.model.state_matrix`)."""
     return state_matrix(mats, coefficients, speed_rad_s)
 
 

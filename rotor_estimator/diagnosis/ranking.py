@@ -23,10 +23,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..linear_filters import single_threaded_blas
-from .context import FitContext
-from .effects import LIBRARY, Effect
-from .fitting import LinearSolution, Projector, bic, coefficients_after, held_out_rms, solve_linear
+from rotor_estimator.core.linear_filters import single_threaded_blas
+from rotor_estimator.diagnosis.context import FitContext
+from rotor_estimator.diagnosis.effects import LIBRARY, Effect
+from rotor_estimator.diagnosis.fitting import LinearSolution, Projector, bic, coefficients_after, held_out_rms, solve_linear
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
 SIGNIFICANCE_DELTA_BIC = 30.0
@@ -267,7 +267,7 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     are free in :func:`scipy.optimize.least_squares`, the linear ones projected out, and
     the fit is kept only when its BIC improves.
     """
-    from .context import COEFFICIENT_SCALE, recentered, with_coefficients
+    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, recentered, with_coefficients
 
     n = ctx.t_s.size
     n_nl = len(effect.nl_names)
@@ -344,7 +344,7 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
 
 def _stable(ctx: FitContext, coefficients: np.ndarray) -> bool:
     """True when the nominal rigid model (Eq. 2) with ``coefficients`` is asymptotically stable at the mean speed."""
-    from ..model import state_matrix
+    from rotor_estimator.core.model import state_matrix
 
     try:
         a = state_matrix(ctx.mats, np.asarray(coefficients, float), ctx.mean_speed_rad_s)
@@ -417,7 +417,7 @@ def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 
     model itself; this re-evaluates the nominal from there so that the improvement is not
     credited to the effect.
     """
-    from .context import COEFFICIENT_SCALE, _simulate_nominal
+    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, _simulate_nominal
 
     rows = ctx.mask
 

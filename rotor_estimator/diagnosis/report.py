@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..safe_write import output_directory, save_figure, write_text
-from .api import Diagnosis
-from .residuals import CHANNELS
+from rotor_estimator.io.safe_write import output_directory, save_figure, write_text
+from rotor_estimator.diagnosis.api import Diagnosis
+from rotor_estimator.diagnosis.residuals import CHANNELS
 
 
 def _plt():

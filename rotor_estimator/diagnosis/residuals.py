@@ -8,7 +8,7 @@ estimated level puts there (``sigma^2`` times the band's share of spectral lines
 
 Whirl direction (full spectrum): per probe plane the complex signal ``x + j y``; for
 order ``h`` with phasors ``X, Y`` the forward part is ``|X + jY|/2`` and the backward
-part ``|X - jY|/2`` (the convention of :func:`rotor_estimator.model.whirl_modes`).
+part ``|X - jY|/2`` (the convention of :func:`rotor_estimator.core.model.whirl_modes`).
 """
 from __future__ import annotations
 

@@ -24,8 +24,8 @@ import math
 
 import numpy as np
 
-from .._forcing import rigid_state_derivative
-from .._jit import njit
+from rotor_estimator.core.forcing import rigid_state_derivative
+from rotor_estimator.core.jit import njit
 
 
 @njit

@@ -24,10 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
-from . import _kernel
-from .problem import CoefficientModel, Record, RigArrays
-from .result import IdentificationResult
+from rotor_estimator.core.errors import InputError
+from rotor_estimator.identification import _kernel
+from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
+from rotor_estimator.identification.result import IdentificationResult
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ class BatchOptions:
     tolerance: float = 1e-6
 
     def __post_init__(self) -> None:
-        from ..errors import ConfigError
+        from rotor_estimator.core.errors import ConfigError
 
         if not self.noise_std_m > 0:
             raise ConfigError("batch.noise_std_m: must be > 0 m")
@@ -169,7 +169,7 @@ def fit(arrays: RigArrays, model: CoefficientModel, records: Record | list[Recor
         total_it += it
     n_shared = prob.n_shared
     # information of the shared parameters with the initial states eliminated
-    from .information import bound, eliminate_nuisance
+    from rotor_estimator.core.fisher import bound, eliminate_nuisance
 
     order = np.concatenate([np.arange(n_shared, prob.n_par), np.arange(n_shared)])
     info_shared = eliminate_nuisance(fim[np.ix_(order, order)], 8 * len(records))

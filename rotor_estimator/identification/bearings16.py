@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import RigConfig
-from .batch_ml import BatchOptions, fit
-from .planner import CandidateBound, evaluate
-from .problem import CoefficientModel, Record, RigArrays
-from .result import IdentificationResult
-from .scenarios import TestDesign
+from rotor_estimator.core.config import RigConfig
+from rotor_estimator.identification.batch_ml import BatchOptions, fit
+from rotor_estimator.identification.planner import CandidateBound, evaluate
+from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
+from rotor_estimator.identification.result import IdentificationResult
+from rotor_estimator.identification.scenarios import TestDesign
 
 MODEL16 = CoefficientModel(identical_bearings=False)
 

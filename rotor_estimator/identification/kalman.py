@@ -4,7 +4,7 @@
   RK4 state prediction with its exact Jacobian, linear Joseph-form update, the
   coefficients (and, when unknown, the imbalance moments) as constant states. With
   identical bearings, known imbalance and constant coefficients it is the same filter
-  as :class:`rotor_estimator.ekf.StreamingEKF` (checked by a test). ``passes`` repeats
+  as :class:`rotor_estimator.core.ekf.StreamingEKF` (checked by a test). ``passes`` repeats
   the pass from the previous pass's estimate with the prior covariance (the paper's
   multi-pass use).
 * **UKF** -- the same model with the prediction done by propagating filterpy's
@@ -27,11 +27,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..config import EstimatorConfig
-from ..errors import ConfigError, FilterDivergedError
-from . import _kernel
-from .problem import CoefficientModel, Record, RigArrays
-from .result import IdentificationResult
+from rotor_estimator.core.config import EstimatorConfig
+from rotor_estimator.core.errors import ConfigError, FilterDivergedError
+from rotor_estimator.identification import _kernel
+from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
+from rotor_estimator.identification.result import IdentificationResult
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@
                (:func:`.kalman.run_ekf_rts`): converges to the batch estimate with the
                prior; use it with random-walk coefficients (two-sided tracks).
 ``ekf``        the EKF (:func:`.kalman.run_ekf`; the node runs the compiled core
-               :class:`rotor_estimator.ekf.StreamingEKF`): **default live**, the only one
+               :class:`rotor_estimator.core.ekf.StreamingEKF`): **default live**, the only one
                that is causal and O(1) per sample.
 ``ukf``        the UKF with filterpy's scaled sigma points (:func:`.kalman.run_ukf`):
                same accuracy as the EKF here (the model is bilinear, its linearization
@@ -24,12 +24,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import EstimatorConfig
-from ..errors import ConfigError
-from .batch_ml import BatchOptions, fit
-from .kalman import KalmanOptions, run_ekf, run_ekf_rts, run_ukf
-from .problem import CoefficientModel, Record, RigArrays
-from .result import IdentificationResult
+from rotor_estimator.core.config import EstimatorConfig
+from rotor_estimator.core.errors import ConfigError
+from rotor_estimator.identification.batch_ml import BatchOptions, fit
+from rotor_estimator.identification.kalman import KalmanOptions, run_ekf, run_ekf_rts, run_ukf
+from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
+from rotor_estimator.identification.result import IdentificationResult
 
 METHODS: tuple[str, ...] = ("ekf", "ukf", "ekf+rts", "batch-ml")
 DEFAULT_OFFLINE = "batch-ml"

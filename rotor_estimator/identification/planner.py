@@ -20,12 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import RigConfig
-from ..errors import ConfigError
-from ..model import eigenfrequencies, rotor_matrices
-from .information import bound, design_information
-from .problem import CoefficientModel, RigArrays
-from .scenarios import RPM, SpeedSegment, TestDesign, TrialWeight, dwell, multi_impact, simulate_design, sweep
+from rotor_estimator.core.config import RigConfig
+from rotor_estimator.core.errors import ConfigError
+from rotor_estimator.core.model import eigenfrequencies, rotor_matrices
+from rotor_estimator.core.fisher import bound
+from rotor_estimator.identification.information import design_information
+from rotor_estimator.identification.problem import CoefficientModel, RigArrays
+from rotor_estimator.identification.scenarios import RPM, SpeedSegment, TestDesign, TrialWeight, dwell, multi_impact, simulate_design, sweep
 
 DIRECT = np.array([True, False, False, True, True, False, False, True])
 
@@ -233,8 +234,8 @@ class Plan:
 
 
 def _names(n: int) -> tuple[str, ...]:
-    from .problem import BEARING_COEFFICIENT_NAMES
-    from ..config import COEFFICIENT_NAMES
+    from rotor_estimator.identification.problem import BEARING_COEFFICIENT_NAMES
+    from rotor_estimator.core.config import COEFFICIENT_NAMES
 
     return COEFFICIENT_NAMES if n == 8 else BEARING_COEFFICIENT_NAMES
 

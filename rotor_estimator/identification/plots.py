@@ -5,8 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .speed_dependent import RPM, SpeedTable
-from ..safe_write import output_directory, save_figure
+from rotor_estimator.identification.speed_dependent import RPM, SpeedTable
+from rotor_estimator.io.safe_write import output_directory, save_figure
 
 
 def coefficients_vs_speed(tab: SpeedTable, path: str | Path, *, truth: SpeedTable | None = None,

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import COEFFICIENT_NAMES, RigConfig
-from ..errors import ConfigError, InputError
-from ..model import point_force_weights, rotor_matrices
+from rotor_estimator.core.config import COEFFICIENT_NAMES, RigConfig
+from rotor_estimator.core.errors import ConfigError, InputError
+from rotor_estimator.core.model import point_force_weights, rotor_matrices
 
 BEARING_COEFFICIENT_NAMES: tuple[str, ...] = tuple(f"{n}_{b}" for b in (1, 2) for n in COEFFICIENT_NAMES)
 
@@ -210,10 +210,10 @@ def generalized_impact_force(rig: RigConfig, force_n: np.ndarray, axial_position
 
 
 def record_from_recording(rig: RigConfig, recording, shaft=None, *, impact_position_m: float | None = None) -> Record:
-    """A :class:`Record` from a :class:`~rotor_estimator.recording.RigRecording`, with the
-    shaft state read through the tachometer (:func:`rotor_estimator.offline.shaft_inputs_from_recording`)
+    """A :class:`Record` from a :class:`~rotor_estimator.core.recording.RigRecording`, with the
+    shaft state read through the tachometer (:func:`rotor_estimator.core.offline.shaft_inputs_from_recording`)
     unless ``shaft`` is given. Samples without a valid shaft reference are not used."""
-    from ..offline import shaft_inputs_from_recording
+    from rotor_estimator.core.offline import shaft_inputs_from_recording
 
     shaft = shaft or shaft_inputs_from_recording(recording)
     return Record(t_s=recording.time_s(), angle_rad=shaft.angle_rad, speed_rad_s=shaft.speed_rad_s,

@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .problem import CoefficientModel
+from rotor_estimator.identification.problem import CoefficientModel
 
 
 @dataclass

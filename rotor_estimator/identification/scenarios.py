@@ -19,12 +19,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import RigConfig
-from ..errors import ConfigError
-from ..model import point_force_weights
-from ..simulator import Impact, Scenario
-from . import _kernel
-from .problem import CoefficientModel, Record, RigArrays
+from rotor_estimator.core.config import RigConfig
+from rotor_estimator.core.errors import ConfigError
+from rotor_estimator.core.model import point_force_weights
+from rotor_estimator.core.simulator import Impact, Scenario
+from rotor_estimator.identification import _kernel
+from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
 
 RPM = 2.0 * math.pi / 60.0
 
@@ -181,7 +181,7 @@ def dwell(name: str, speeds_rpm: tuple[float, ...], dwell_s: float, *, ramp_s: f
 
 
 def design_from_scenario(rig: RigConfig, scenario: Scenario) -> TestDesign:
-    """The core simulator's :class:`~rotor_estimator.simulator.Scenario` as a design (impacts at the rig station)."""
+    """The core simulator's :class:`~rotor_estimator.core.simulator.Scenario` as a design (impacts at the rig station)."""
     w0 = rig.speed_rad_s if scenario.speed_start_rad_s is None else scenario.speed_start_rad_s
     w1 = w0 if scenario.speed_end_rad_s is None else scenario.speed_end_rad_s
     return TestDesign(name=scenario.name, segments=(SpeedSegment(scenario.duration_s, w0, w1),),
@@ -284,7 +284,7 @@ def simulate_design(rig: RigConfig, design: TestDesign, *, coefficients: np.ndar
         a, w, al = angle[first:], speed[first:], accel[first:]
         use = None
         if through_tachometer:
-            from ..tachometer import shaft_states_from_pulses
+            from rotor_estimator.core.tachometer import shaft_states_from_pulses
 
             stamps = np.round(t_rec * 1e9).astype(np.int64)
             states_tach, _ = shaft_states_from_pulses(np.round(pulses * 1e9).astype(np.int64), stamps)

@@ -20,10 +20,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..config import COEFFICIENT_UNITS
-from .batch_ml import BatchOptions, fit
-from .problem import CoefficientModel, Record, RigArrays
-from .result import IdentificationResult
+from rotor_estimator.core.config import COEFFICIENT_UNITS
+from rotor_estimator.identification.batch_ml import BatchOptions, fit
+from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
+from rotor_estimator.identification.result import IdentificationResult
 
 RPM = 2.0 * np.pi / 60.0
 Z95 = 1.959963984540054
@@ -109,7 +109,7 @@ def random_walk_track(arrays: RigArrays, record: Record, options, *, rate: np.nd
                       estimate_imbalance: bool = False) -> SpeedTable:
     """Random-walk alternative: EKF + RTS with coefficient random-walk std rate ``rate`` (SI/sqrt(s));
     returns the smoothed coefficients at every ``keep_every``-th sample against the measured speed."""
-    from .kalman import run_ekf_rts
+    from rotor_estimator.identification.kalman import run_ekf_rts
 
     model = CoefficientModel()
     opts = replace(options, theta_random_walk=np.asarray(rate, dtype=float), passes=max(options.passes, 2))

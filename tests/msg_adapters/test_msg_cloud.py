@@ -6,7 +6,7 @@ import pytest
 
 import msg_adapters as ma
 from msg_adapters.cloud import FLOAT32, FLOAT64, UINT32
-from rotor_estimator.errors import InputError
+from rotor_estimator.core.errors import InputError
 
 T0_NS = 1_234_567_890_123_456_789
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import msg_adapters as ma
-from rotor_estimator.errors import InputError
+from rotor_estimator.core.errors import InputError
 
 T0_NS = 1_700_000_000_999_999_937  # exercises every nanosecond digit
 

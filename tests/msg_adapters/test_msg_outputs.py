@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import msg_adapters as ma
-from rotor_estimator.config import COEFFICIENT_NAMES_WITH_UNITS
-from rotor_estimator.errors import InputError
+from rotor_estimator.core.config import COEFFICIENT_NAMES_WITH_UNITS
+from rotor_estimator.core.errors import InputError
 
 T_NS = 1_700_000_123_000_000_001
 

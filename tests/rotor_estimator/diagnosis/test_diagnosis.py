@@ -8,13 +8,13 @@ import warnings
 import numpy as np
 import pytest
 
-from rotor_estimator.config import load_rig_file
+from rotor_estimator.core.config import load_rig_file
 from rotor_estimator.diagnosis.context import build_context
-from rotor_estimator.diagnosis.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
+from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
 from rotor_estimator.diagnosis.effects import effect_by_name
 from rotor_estimator.diagnosis.ranking import fit_effect, nominal_solution, rank_effects, refine
 from rotor_estimator.diagnosis.residuals import budget
-from rotor_estimator.simulator import Impact
+from rotor_estimator.core.simulator import Impact
 
 warnings.filterwarnings("ignore", category=RuntimeWarning)
 
@@ -123,9 +123,9 @@ def test_misalignment_gap_lies_in_2x_and_ranking_is_stable_across_seeds(rig_file
 
 
 def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
-    from rotor_estimator.cli import main
-    from rotor_estimator.diagnosis.blind import rig_file_yaml, save_recording
-    from rotor_estimator.config import RigFile
+    from rotor_estimator.cli.main import main
+    from rotor_estimator.bench.blind import rig_file_yaml, save_recording
+    from rotor_estimator.core.config import RigFile
     from dataclasses import replace
 
     rig = rig_file.rig
@@ -154,14 +154,14 @@ def test_core_diagnosis_imports_no_ros():
     import subprocess
     import sys
 
-    code = ("import sys, rotor_estimator.diagnosis, rotor_estimator.diagnosis.blind, rotor_estimator.diagnosis.report\n"
+    code = ("import sys, rotor_estimator.diagnosis, rotor_estimator.bench.blind, rotor_estimator.diagnosis.report\n"
             "print(','.join(sorted(k for k in sys.modules if k.split('.')[0] in ('rclpy', 'rosbags'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
 
 
 def test_hidden_effects_validation_names_the_field():
-    from rotor_estimator.errors import ConfigError
+    from rotor_estimator.core.errors import ConfigError
 
     with pytest.raises(ConfigError, match="effects.pedestal"):
         HiddenEffects(pedestal=(0.0, 1e6, 10.0)).validate()
@@ -184,7 +184,7 @@ def test_data_accounting_counts_each_left_out_sample_and_warns_without_an_impact
     from types import SimpleNamespace
 
     from rotor_estimator.diagnosis.api import NO_IMPACT_WARNING, data_accounting
-    from rotor_estimator.recording import RigRecording
+    from rotor_estimator.core.recording import RigRecording
 
     n = 1000
     probes = np.zeros((n, 4))
@@ -212,8 +212,8 @@ def test_data_accounting_counts_each_left_out_sample_and_warns_without_an_impact
     ("missing", "missing array.*impact_force_n"),
 ])
 def test_bad_npz_recording_is_a_clear_error_naming_the_file(tmp_path, content, match):
-    from rotor_estimator.diagnosis.blind import load_recording
-    from rotor_estimator.errors import InputError
+    from rotor_estimator.bench.blind import load_recording
+    from rotor_estimator.core.errors import InputError
 
     path = tmp_path / "rec.npz"
     if content == "pickled":
@@ -229,8 +229,8 @@ def test_bad_npz_recording_is_a_clear_error_naming_the_file(tmp_path, content, m
 
 
 def test_non_finite_impact_force_is_refused_before_any_fit(rig_file):
-    from rotor_estimator.errors import InputError
-    from rotor_estimator.recording import RigRecording
+    from rotor_estimator.core.errors import InputError
+    from rotor_estimator.core.recording import RigRecording
 
     n = 2000
     force = np.zeros((n, 2))

@@ -8,13 +8,13 @@ import warnings
 import numpy as np
 import pytest
 
-from rotor_estimator.config import load_rig_file
+from rotor_estimator.core.config import load_rig_file
 from rotor_estimator.diagnosis.context import build_context, with_coefficients
-from rotor_estimator.diagnosis.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
+from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
 from rotor_estimator.diagnosis.effects import (UNIT_UNBALANCE_KG_M, PedestalFlexibility, ResidualUnbalance,
                                                effect_by_name)
 from rotor_estimator.diagnosis.ranking import _parts
-from rotor_estimator.simulator import Impact
+from rotor_estimator.core.simulator import Impact
 
 warnings.filterwarnings("ignore", category=RuntimeWarning)
 

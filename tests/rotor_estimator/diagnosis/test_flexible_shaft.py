@@ -8,17 +8,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rotor_estimator.config import Imbalance, load_rig_file
+from rotor_estimator.core.config import Imbalance, load_rig_file
 from rotor_estimator.diagnosis.context import build_context
-from rotor_estimator.diagnosis.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
+from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
 from rotor_estimator.diagnosis.flexible_shaft import (DECOUPLED_OFFSET, FlexibleShaft, decoupled_column,
                                                       equivalent_beam, flexible_response, plane_matrices,
                                                       reduce_shaft, rig_stations, shaft_model,
                                                       VARIANT_SWITCH)
 from rotor_estimator.diagnosis.ranking import fit_effect, nominal_solution, refine
-from rotor_estimator.model import rotor_matrices
-from rotor_estimator.recording import RigRecording
-from rotor_estimator.simulator import Impact
+from rotor_estimator.core.model import rotor_matrices
+from rotor_estimator.core.recording import RigRecording
+from rotor_estimator.core.simulator import Impact
 
 warnings.filterwarnings("ignore", category=RuntimeWarning)
 
@@ -41,7 +41,7 @@ def control(rig_file):
 
 def _rigs(rig_file):
     """The seed rig, a slender-shaft rig (stations inside a heavy center) and a rig with its mass far out."""
-    from rotor_estimator.diagnosis.ross_cases import rig_from_geometry
+    from rotor_estimator.bench.ross_cases import rig_from_geometry
 
     seed = rig_file.rig
     ross = rig_from_geometry(0.022, 1500.0, 1e-6)
@@ -86,10 +86,10 @@ def test_rigid_limit_equals_the_nominal_model(control):
 
 
 def test_coupled_model_matches_the_fe_rotor_package():
-    """Eigenvalues at speed vs :mod:`rotor_estimator.flexible` (Timoshenko FE, all DOFs) for a slender shaft + disk."""
-    from rotor_estimator.config import RigConfig
-    from rotor_estimator.flexible import assemble, rotor_from_mapping
-    from rotor_estimator.flexible.modal import state_matrices
+    """Eigenvalues at speed vs :mod:`rotor_estimator.core.flexible` (Timoshenko FE, all DOFs) for a slender shaft + disk."""
+    from rotor_estimator.core.config import RigConfig
+    from rotor_estimator.core.flexible import assemble, rotor_from_mapping
+    from rotor_estimator.core.flexible.modal import state_matrices
 
     length, d, rho, e = 0.4, 0.012, 7800.0, 2.1e11
     disk = {"station_axial_m": 0.2, "mass_kg": 1.2, "polar_inertia_kg_m2": 3.5e-3, "transverse_inertia_kg_m2": 1.75e-3}

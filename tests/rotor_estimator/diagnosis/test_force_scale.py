@@ -5,9 +5,9 @@ import dataclasses
 
 import pytest
 
-from rotor_estimator.config import load_rig_file
+from rotor_estimator.core.config import load_rig_file
 from rotor_estimator.diagnosis.api import diagnose
-from rotor_estimator.simulator import paper_scenario, simulate
+from rotor_estimator.core.simulator import paper_scenario, simulate
 
 
 @pytest.mark.slow

@@ -6,11 +6,11 @@ import json
 import numpy as np
 import pytest
 
-from rotor_estimator.bagio import write_input_bag
-from rotor_estimator.config import SEED_RIG_PATH, load_rig_file
+from rotor_estimator.io.bags import write_input_bag
+from rotor_estimator.core.config import SEED_RIG_PATH, load_rig_file
 from rotor_estimator.diagnosis.api import MAX_FIT_WINDOW_S, analysis_window
-from rotor_estimator.recording import RigRecording
-from rotor_estimator.simulator import Impact, Scenario, paper_scenario, simulate
+from rotor_estimator.core.recording import RigRecording
+from rotor_estimator.core.simulator import Impact, Scenario, paper_scenario, simulate
 
 
 def _recording(n: int, impacts_at: list[int]) -> RigRecording:

@@ -9,12 +9,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from rotor_estimator.config import load_rig_file
+from rotor_estimator.core.config import load_rig_file
 from rotor_estimator.diagnosis.context import build_context
-from rotor_estimator.diagnosis.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
+from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
 from rotor_estimator.diagnosis.effects import TimingSkew
 from rotor_estimator.diagnosis.ranking import _stable, rank_effects
-from rotor_estimator.simulator import Impact
+from rotor_estimator.core.simulator import Impact
 
 warnings.filterwarnings("ignore", category=RuntimeWarning)
 
@@ -38,7 +38,7 @@ def test_stability_check_rejects_negative_damping():
     """A coefficient set with negative direct damping is unstable (a refit must not start there)."""
     rig = load_rig_file().rig
     r = rig.true_coefficients.as_array()
-    ctx = SimpleNamespace(mats=__import__("rotor_estimator.model", fromlist=["rotor_matrices"]).rotor_matrices(rig),
+    ctx = SimpleNamespace(mats=__import__("rotor_estimator.core.model", fromlist=["rotor_matrices"]).rotor_matrices(rig),
                           mean_speed_rad_s=rig.speed_rad_s)
     assert _stable(ctx, r)
     bad = r.copy()
@@ -82,7 +82,7 @@ def test_soft_pedestal_that_drags_the_nominal_fit_off_is_found_with_its_frequenc
 
     The case is the seed-2031 blind set's case_004, a near-limit (1.5x) gap.
     """
-    from rotor_estimator.diagnosis import blind
+    from rotor_estimator.bench import blind
 
     case = blind.make_case("c", ("pedestal",), 2031004, near_limit=True)
     m, k, _ = case.label["effects_params"]["pedestal"]

@@ -7,7 +7,7 @@ import shlex
 
 import pytest
 
-from rotor_estimator.cli import main
+from rotor_estimator.cli.main import main
 
 
 @pytest.mark.slow
@@ -37,7 +37,7 @@ def test_plan_respects_the_achievable_deceleration_and_states_the_hammer():
     """A test that needs a faster speed change than --decel-rpm-per-s is never recommended."""
     import numpy as np
 
-    from rotor_estimator.config import load_rig_file
+    from rotor_estimator.core.config import load_rig_file
     from rotor_estimator.identification.planner import (Target, candidate_designs, plan,
                                                         required_decel_rpm_per_s)
 

@@ -5,14 +5,14 @@ import json
 import numpy as np
 import pytest
 
-from rotor_estimator.ekf import StreamingEKF, initial_covariance
-from rotor_estimator.identification.identifiability import (NOT_DETERMINED, report_from_filter,
+from rotor_estimator.core.ekf import StreamingEKF, initial_covariance
+from rotor_estimator.core.identifiability import (NOT_DETERMINED, report_from_filter,
                                                             report_from_information)
 from rotor_estimator.identification.information import design_information
 from rotor_estimator.identification.planner import Target, evaluate, plan
 from rotor_estimator.identification.scenarios import design_from_scenario, multi_impact, simulate_design, sweep
-from rotor_estimator.offline import shaft_inputs_from_recording
-from rotor_estimator.simulator import paper_scenario, simulate
+from rotor_estimator.core.offline import shaft_inputs_from_recording
+from rotor_estimator.core.simulator import paper_scenario, simulate
 
 
 def _info(rig, arrays, model8, true8, design, unknown=False):
@@ -66,7 +66,7 @@ def test_crlb_scales_with_noise_and_unknown_imbalance_widens_it(seed_rig, true8)
 
 
 def test_plan_command_json(capsys, seed_rig, monkeypatch):
-    from rotor_estimator.commands import identify_cmd
+    from rotor_estimator.cli.commands import identify_cmd
     from rotor_estimator.identification import planner
 
     monkeypatch.setattr(planner, "candidate_designs", lambda rig, c, bearings16=False, hammer_force_n=515.0: [
@@ -81,7 +81,7 @@ def test_plan_command_json(capsys, seed_rig, monkeypatch):
 
 
 def test_bench_identification_json_keys(capsys):
-    from rotor_estimator.commands import identify_cmd
+    from rotor_estimator.cli.commands import identify_cmd
 
     parser = argparse.ArgumentParser()
     identify_cmd.add_bench_parsers(parser.add_subparsers(dest="bench"))

@@ -8,7 +8,7 @@ from rotor_estimator.identification.kalman import KalmanOptions, run_ekf, run_ek
 from rotor_estimator.identification.planner import evaluate
 from rotor_estimator.identification.problem import record_from_recording
 from rotor_estimator.identification.scenarios import design_from_scenario, simulate_design, sweep
-from rotor_estimator.simulator import paper_scenario, simulate
+from rotor_estimator.core.simulator import paper_scenario, simulate
 
 
 def test_planner_crlb_matches_empirical_spread_of_batch_ml(seed_rig, arrays, model8, true8, r0):

@@ -3,16 +3,17 @@
 import numpy as np
 import pytest
 
-from rotor_estimator.crlb import bound_from_fisher, fisher_information
-from rotor_estimator.ekf import FilterModel
-from rotor_estimator.errors import ConfigError
-from rotor_estimator.identification.information import bound, design_information
+from rotor_estimator.core.crlb import bound_from_fisher, fisher_information
+from rotor_estimator.core.ekf import FilterModel
+from rotor_estimator.core.errors import ConfigError
+from rotor_estimator.core.fisher import bound
+from rotor_estimator.identification.information import design_information
 from rotor_estimator.identification.kalman import KalmanOptions, run_ekf
 from rotor_estimator.identification.problem import record_from_recording
 from rotor_estimator.identification.scenarios import (SpeedSegment, TestDesign, design_from_scenario,
                                                       simulate_design)
-from rotor_estimator.offline import estimate
-from rotor_estimator.simulator import Scenario, paper_scenario, simulate
+from rotor_estimator.core.offline import estimate
+from rotor_estimator.core.simulator import Scenario, paper_scenario, simulate
 
 SWEEP = Scenario(duration_s=0.3, discard_initial_s=0.01, impacts=(), speed_start_rad_s=2094.4,
                  speed_end_rad_s=314.16, name="sweep")

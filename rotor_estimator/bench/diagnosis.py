@@ -1,0 +1,166 @@
+"""Blind benchmark of the diagnosis: generate a fresh withheld-effect set, diagnose, then score.
+
+The diagnosis step reads only ``cases/<id>/recording.npz`` and ``rig.yaml``; the labels
+(``labels/labels.json``) are opened after every case has been diagnosed.
+
+Scores: confusion matrix (truth rows, verdict columns), top-1 and top-2 accuracy (a pair
+case counts top-1 when the verdict is one of its effects and top-2 when both are in the
+verdict's top two), accuracy where the gap is clear (nominal RMS >= 1.5 x the realized
+noise RMS), pairs with both effects in the top two (all pairs, and apart those whose two
+effects each show beyond the coefficients and the partner's model, the label's
+``effect_gap``), false alarms on controls, and the shrink error ``|predicted / true - 1|`` with
+``true = nominal residual RMS / realized noise RMS`` (the residual of the generating model).
+"""
+from __future__ import annotations
+
+import json
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from rotor_estimator.bench.blind import MIN_GAP, load_recording, write_blind_set
+
+
+def _single_thread_worker() -> None:
+    """Pool initializer: one BLAS thread per worker (``jobs`` workers on ``jobs`` cores, no oversubscription)."""
+    import os
+
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[k] = "1"
+    try:
+        from threadpoolctl import threadpool_limits
+
+        globals()["_LIMITS"] = threadpool_limits(1)
+    except ImportError:
+        pass
+
+
+def diagnose_case(case_dir: str) -> dict:
+    """Diagnose one case directory (labels never read here)."""
+    import warnings
+
+    from rotor_estimator.core.config import load_rig_file
+    from rotor_estimator.diagnosis.api import diagnose
+
+    warnings.simplefilter("ignore")
+    d = Path(case_dir)
+    rig_file = load_rig_file(d / "rig.yaml")
+    t0 = time.time()
+    try:
+        s = diagnose(load_recording(d / "recording.npz"), rig_file.rig, rig_file.estimator).summary()
+    except Exception as exc:  # a failed case is scored as a miss, not a crash of the benchmark
+        return {"case": d.name, "error": repr(exc), "seconds": time.time() - t0}
+    return {"case": d.name, "best_effect": s["best_effect"], "second_effect": s["second_effect"],
+            "top_two": s["top_two"], "before": s["residual_rms_before"], "after": s["residual_rms_after"],
+            "shrink_ratio": s["shrink_ratio"], "ranking": [(r["effect"], r["delta_bic"]) for r in s["ranking"][:3]],
+            "seconds": time.time() - t0}
+
+
+def score(results: list[dict], labels: dict) -> dict:
+    rows, cm_labels = [], set()
+    for r in results:
+        lab = labels[r["case"]]
+        truth = lab["effects"]
+        best = r.get("best_effect", "error")
+        top2 = set(r.get("top_two", []))
+        if r.get("second_effect", "none") != "none":
+            top2 = {best, r["second_effect"]}
+        if not truth:
+            t1 = t2 = best == "none"
+        elif len(truth) == 1:
+            t1, t2 = best == truth[0], best != "none" and truth[0] in top2
+        else:
+            t1, t2 = best in truth, best != "none" and set(truth) <= top2
+        gap = r["before"] / lab["noise_rms_m"] if "before" in r else float("nan")
+        shrink_err = float("nan")
+        if truth and best != "none" and "before" in r:
+            shrink_err = abs(r["shrink_ratio"] / gap - 1.0)
+        key = "+".join(truth) if truth else "none"
+        cm_labels |= {key, best}
+        # a pair both of whose effects show beyond the coefficients and the partner's model (the label's
+        # effect_gap; None when the label has none)
+        own = lab.get("effect_gap") or {}
+        separable = min(own.values()) >= MIN_GAP if len(truth) == 2 and len(own) == 2 else None
+        rows.append({"case": r["case"], "truth": key, "verdict": best, "top1": t1, "top2": t2, "gap": gap,
+                     "generator": lab["generator"], "shrink_error": shrink_err, "seconds": r.get("seconds", 0.0),
+                     "pair_separable": separable})
+    arr = lambda k, sel=None: np.array([x[k] for x in rows if sel is None or sel(x)], dtype=float)  # noqa: E731
+    controls = [x for x in rows if x["truth"] == "none"]
+    clear = lambda x: x["gap"] >= 1.5 and x["truth"] != "none"  # noqa: E731
+    near = lambda x: 1.2 <= x["gap"] < 2.0 and x["truth"] != "none"  # noqa: E731
+    shrink = arr("shrink_error")
+    shrink = shrink[np.isfinite(shrink)]
+    return {"cases": len(rows), "controls": len(controls),
+            "top1": float(arr("top1").mean()), "top2": float(arr("top2").mean()),
+            "top1_clear_gap": float(np.mean(arr("top1", clear))) if any(map(clear, rows)) else float("nan"),
+            "n_clear_gap": int(sum(map(clear, rows))), "n_near_limit": int(sum(map(near, rows))),
+            "top1_near_limit": float(np.mean(arr("top1", near))) if any(map(near, rows)) else float("nan"),
+            "n_below_1p2": int(sum(1 for x in rows if x["truth"] != "none" and x["gap"] < 1.2)),
+            "false_alarms": int(sum(1 for x in controls if x["verdict"] != "none")),
+            "shrink_error_median": float(np.median(shrink)) if shrink.size else float("nan"),
+            "shrink_within_20pct": float(np.mean(shrink <= 0.2)) if shrink.size else float("nan"),
+            "pairs_both_in_top2": [x["top2"] for x in rows if "+" in x["truth"]],
+            "separable_pairs_both_in_top2": [x["top2"] for x in rows if x["pair_separable"]],
+            "ross_top1": [x["top1"] for x in rows if x["generator"] == "ross"],
+            "mean_seconds_per_case": float(arr("seconds").mean()),
+            "rows": rows, "confusion": _confusion(rows)}
+
+
+def _confusion(rows: list[dict]) -> dict:
+    truths = sorted({x["truth"] for x in rows})
+    verdicts = sorted({x["verdict"] for x in rows})
+    return {"truths": truths, "verdicts": verdicts,
+            "counts": [[sum(1 for x in rows if x["truth"] == t and x["verdict"] == v) for v in verdicts]
+                       for t in truths]}
+
+
+def format_score(s: dict) -> str:
+    cm = s["confusion"]
+    short = {v: v[:10] for v in cm["verdicts"]}
+    w = max(len(t) for t in cm["truths"]) + 2
+    out = ["Confusion matrix (rows: hidden effect(s); columns: verdict)", " " * w + " ".join(f"{short[v]:>10s}" for v in cm["verdicts"])]
+    for t, row in zip(cm["truths"], cm["counts"]):
+        out.append(f"{t:<{w}s}" + " ".join(f"{c:>10d}" for c in row))
+    out += ["", f"cases {s['cases']} (controls {s['controls']}, clear gap >= 1.5x: {s['n_clear_gap']}, "
+                f"near limit 1.2-2x: {s['n_near_limit']}, below 1.2x: {s['n_below_1p2']})",
+            f"top-1 accuracy           {100 * s['top1']:.1f} %",
+            f"top-2 accuracy           {100 * s['top2']:.1f} %",
+            f"top-1 where gap >= 1.5x  {100 * s['top1_clear_gap']:.1f} %",
+            f"top-1 near limit         {100 * s['top1_near_limit']:.1f} %",
+            f"false alarms on controls {s['false_alarms']} / {s['controls']}",
+            f"pairs with both in top 2 {sum(s['pairs_both_in_top2'])} / {len(s['pairs_both_in_top2'])} "
+            f"(each effect's own gap >= {MIN_GAP}x: {sum(s['separable_pairs_both_in_top2'])} / "
+            f"{len(s['separable_pairs_both_in_top2'])})",
+            f"ROSS cases top-1         {sum(s['ross_top1'])} / {len(s['ross_top1'])}",
+            f"shrink error median      {100 * s['shrink_error_median']:.1f} %, within 20 %: "
+            f"{100 * s['shrink_within_20pct']:.1f} % of detected cases",
+            f"mean time per case       {s['mean_seconds_per_case']:.1f} s"]
+    return "\n".join(out)
+
+
+def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, *, jobs: int = 2,
+        use_ross: bool = True, progress=None) -> dict:
+    """Generate, diagnose (``jobs`` processes), score. Returns the score dict."""
+    import tempfile
+
+    tmp = None
+    if out_dir is None:
+        tmp = tempfile.TemporaryDirectory(prefix="blind_")
+        out_dir = tmp.name
+    out = Path(out_dir)
+    t0 = time.time()
+    write_blind_set(out, n_cases, seed, use_ross=use_ross, progress=progress, jobs=jobs)
+    t_gen = time.time() - t0
+    case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
+    with ProcessPoolExecutor(max_workers=max(1, jobs), initializer=_single_thread_worker) as pool:
+        results = list(pool.map(diagnose_case, case_dirs))
+    labels = json.loads((out / "labels" / "labels.json").read_text())  # opened only now
+    s = score(results, labels)
+    s["generation_seconds"] = t_gen
+    s["total_seconds"] = time.time() - t0
+    (out / "results.json").write_text(json.dumps({"results": results, "score": s}, indent=1, default=str))
+    if tmp is not None:
+        tmp.cleanup()
+    return s

@@ -1,0 +1,94 @@
+"""``rotor-estimator diagnose BAG --rig RIG [--report DIR] [--json]`` and ``bench diagnosis``.
+
+Reading bags goes through :mod:`rotor_estimator.io.bags` here only (the diagnosis core imports
+no ROS). A ``.npz`` recording (``stamps_ns, probes_m, pulse_stamps_ns, impact_force_n``,
+as written by the blind-set generator) is accepted too.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from rotor_estimator.cli import arguments as cli_types
+from rotor_estimator.cli.arguments import add_bag_argument, bag_from_args
+
+
+def _load(path: Path, salvage: bool = False):
+    from rotor_estimator.core.errors import InputError
+
+    if path.suffix == ".npz":
+        from rotor_estimator.bench.blind import load_recording
+
+        return load_recording(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such bag or recording")
+    from rotor_estimator.io.bags import read_input_bag
+
+    return read_input_bag(path, salvage=salvage)
+
+
+def cmd_diagnose(args: argparse.Namespace) -> int:
+    import sys
+    import warnings
+
+    from rotor_estimator.core.config import load_rig_file
+    from rotor_estimator.diagnosis.api import diagnose
+    from rotor_estimator.diagnosis.report import write_report
+
+    warnings.simplefilter("ignore", RuntimeWarning)
+    rig_file = load_rig_file(args.rig)
+    recording = _load(Path(bag_from_args(args)), args.salvage)
+    d = diagnose(recording, rig_file.rig, rig_file.estimator, passes=args.passes)
+    summary = write_report(d, args.report) if args.report else d.summary()
+    for text in summary["data"]["warnings"]:
+        print(f"rotor-estimator: warning: {text}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(summary, indent=1))
+    else:
+        print(f"best effect: {summary['best_effect']}"
+              + (f" (+ {summary['second_effect']})" if summary["second_effect"] != "none" else ""))
+        w = summary["where"]
+        print(f"gap: residual RMS {summary['residual_rms_before'] * 1e6:.3f} um = {w['gap_ratio']:.2f} x noise; "
+              f"dominant channel {w['dominant_channel']}, band {w['dominant_band']}")
+        print(f"after: {summary['residual_rms_after'] * 1e6:.3f} um, shrink ratio {summary['shrink_ratio']:.2f}")
+        print("ranking (delta BIC): " + ", ".join(f"{r['effect']} {r['delta_bic']:.0f}" for r in summary["ranking"][:4]))
+        if args.report:
+            print(f"report written to {args.report}/report.md")
+    return 0
+
+
+def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
+    import sys
+    import warnings
+
+    from rotor_estimator.bench.diagnosis import format_score, run
+
+    warnings.simplefilter("ignore")
+    s = run(args.cases, args.seed, args.out, jobs=args.jobs, use_ross=not args.no_ross,
+            progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True))
+    print(json.dumps({k: v for k, v in s.items() if k != "rows"}, indent=1) if args.json else format_score(s))
+    return 0
+
+
+def add_parsers(subparsers) -> None:
+    p = subparsers.add_parser("diagnose", help="diagnose the sim-to-real gap of a recording (where, which effect, "
+                                               "how far it shrinks)")
+    add_bag_argument(p, "input bag (rosbag2 MCAP, e.g. from `rotor-estimator import`) or .npz")
+    p.add_argument("--salvage", action="store_true", help="use the intact part of a damaged bag (the messages lost are counted and reported on stderr); without it a damaged bag is an error")
+    p.add_argument("--rig", type=Path, required=True, help="rig YAML (bearing coefficients are estimated)")
+    p.add_argument("--report", metavar="DIR", default=None, help="write report.md, summary.json and PNGs to DIR")
+    p.add_argument("--json", action="store_true", help="print the JSON summary")
+    p.add_argument("--passes", type=cli_types.passes, default=2, help="EKF passes of the nominal fit (default 2)")
+    p.set_defaults(func=cmd_diagnose)
+
+
+def add_bench_parsers(bench_subparsers) -> None:
+    b = bench_subparsers.add_parser("diagnosis", help="blind withheld-effect benchmark of `diagnose`")
+    b.add_argument("--cases", type=int, default=36, help="blind cases to draw (default 36)")
+    b.add_argument("--seed", type=cli_types.seed, default=2024)
+    b.add_argument("--out", default=None, help="keep the blind set, labels and results here")
+    b.add_argument("--jobs", type=int, default=2, help="cases diagnosed at once, one process each (default 2)")
+    b.add_argument("--no-ross", action="store_true", help="leave out the ROSS flexible-shaft cases")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_diagnosis)

@@ -1,8 +1,0 @@
-"""ROS 2 nodes (thin rclpy shells over :mod:`rotor_estimator.pipeline` and the simulator).
-
-* :mod:`.estimator_node`: ``estimator_node`` executable, the live estimator.
-* :mod:`.simulator_node`: ``simulator_node`` executable, synthetic or recorded input topics.
-* :mod:`.io`: message <-> pipeline glue shared with offline replay (no rclpy import).
-
-Only the two node modules import rclpy; everything else here runs without ROS.
-"""

@@ -1,0 +1,33 @@
+"""Blind-benchmark scoring: pairs, controls and the separable-pair split."""
+from __future__ import annotations
+
+from rotor_estimator.bench.diagnosis import format_score, score
+
+
+def _label(effects, effect_gap=None, noise=1e-6):
+    lab = {"effects": effects, "generator": "effect_sim", "noise_rms_m": noise}
+    if effect_gap is not None:
+        lab["effect_gap"] = effect_gap
+    return lab
+
+
+def test_pairs_are_all_counted_and_the_separable_ones_reported_apart():
+    """Every pair counts in "pairs with both in top 2"; only pairs whose two own gaps reach MIN_GAP count in
+    the separable split; a control's "none" is no false alarm, and a single's miss lowers top-1."""
+    labels = {"a": _label(["probe_runout", "bearing_cubic"], {"probe_runout": 1.7, "bearing_cubic": 1.0}),
+              "b": _label(["misalignment", "timing_skew"], {"misalignment": 1.6, "timing_skew": 1.4}),
+              "c": _label([]),
+              "d": _label(["pedestal"])}
+    res = [{"case": "a", "best_effect": "probe_runout", "second_effect": "none", "top_two": ["probe_runout", "tach_offset"],
+            "before": 2e-6, "shrink_ratio": 2.0, "seconds": 1.0},
+           {"case": "b", "best_effect": "misalignment", "second_effect": "timing_skew",
+            "top_two": ["misalignment", "timing_skew"], "before": 2e-6, "shrink_ratio": 2.0, "seconds": 1.0},
+           {"case": "c", "best_effect": "none", "second_effect": "none", "top_two": ["none"], "before": 1e-6,
+            "shrink_ratio": 1.0, "seconds": 1.0},
+           {"case": "d", "best_effect": "shaft_bending", "second_effect": "none", "top_two": ["shaft_bending", "pedestal"],
+            "before": 3e-6, "shrink_ratio": 3.0, "seconds": 1.0}]
+    s = score(res, labels)
+    assert s["pairs_both_in_top2"] == [False, True]
+    assert s["separable_pairs_both_in_top2"] == [True]
+    assert s["false_alarms"] == 0 and s["top1"] == 0.75 and s["top2"] == 0.75
+    assert "pairs with both in top 2 1 / 2 (each effect's own gap >= 1.2x: 1 / 1)" in format_score(s)
