@@ -93,7 +93,7 @@ class Diagnostics(NamedTuple):
 
 
 # --------------------------------------------------------------------------- JointState helpers
-def _joint_state(factory: MessageFactory, stamp_ns: int, names: Sequence[str], position: Any,
+def joint_state(factory: MessageFactory, stamp_ns: int, names: Sequence[str], position: Any,
                  velocity: Any | None, frame_id: str, effort: Any | None = None) -> Any:
     position = np.asarray(position, dtype=np.float64).reshape(-1)
     if position.size != len(names):
@@ -109,7 +109,7 @@ def _joint_state(factory: MessageFactory, stamp_ns: int, names: Sequence[str], p
                        effort=factory.float64_seq(eff))
 
 
-def _joint_values(msg: Any, names: Sequence[str], what: str) -> tuple[int, np.ndarray, np.ndarray]:
+def joint_values(msg: Any, names: Sequence[str], what: str) -> tuple[int, np.ndarray, np.ndarray]:
     """``(stamp_ns, position, velocity)`` for ``names``; velocity NaN if the message has none."""
     expect_type(msg, {JOINT_STATE}, what)
     index = {str(n): i for i, n in enumerate(msg.name)}
@@ -129,7 +129,7 @@ def _joint_values(msg: Any, names: Sequence[str], what: str) -> tuple[int, np.nd
 def coefficients_to_msg(factory: MessageFactory, stamp_ns: int, estimate: Any, std: Any,
                         *, frame_id: str = "") -> Any:
     """``~/coefficients``: estimate (SI) in position, standard deviation in velocity."""
-    return _joint_state(factory, stamp_ns, COEFFICIENT_NAMES_WITH_UNITS, estimate, std, frame_id)
+    return joint_state(factory, stamp_ns, COEFFICIENT_NAMES_WITH_UNITS, estimate, std, frame_id)
 
 
 def covariance_to_msg(factory: MessageFactory, stamp_ns: int, covariance: Any, *, frame_id: str = "") -> Any:
@@ -137,25 +137,25 @@ def covariance_to_msg(factory: MessageFactory, stamp_ns: int, covariance: Any, *
     p = np.asarray(covariance, dtype=np.float64)
     if p.shape != (_N_COEF, _N_COEF):
         raise InputError(f"covariance must have shape ({_N_COEF}, {_N_COEF}), got {p.shape}")
-    return _joint_state(factory, stamp_ns, COVARIANCE_NAMES, p.reshape(-1), None, frame_id)
+    return joint_state(factory, stamp_ns, COVARIANCE_NAMES, p.reshape(-1), None, frame_id)
 
 
 def innovation_to_msg(factory: MessageFactory, stamp_ns: int, innovation_m: Any, std_m: Any,
                       *, frame_id: str = "") -> Any:
     """``~/innovation``: y = z - h(x) in position, sqrt(diag S) in velocity (m)."""
-    return _joint_state(factory, stamp_ns, INNOVATION_NAMES, innovation_m, std_m, frame_id)
+    return joint_state(factory, stamp_ns, INNOVATION_NAMES, innovation_m, std_m, frame_id)
 
 
 def nis_to_msg(factory: MessageFactory, stamp_ns: int, nis: float, nis_window_mean: float, nis_dof: float,
                *, frame_id: str = "") -> Any:
     """``~/nis``: normalized innovation squared, its window mean and degrees of freedom."""
-    return _joint_state(factory, stamp_ns, NIS_NAMES, [nis, nis_window_mean, nis_dof], None, frame_id)
+    return joint_state(factory, stamp_ns, NIS_NAMES, [nis, nis_window_mean, nis_dof], None, frame_id)
 
 
 def shaft_to_msg(factory: MessageFactory, stamp_ns: int, speed_rad_s: float, angle_rad: float,
                  *, frame_id: str = "") -> Any:
     """``~/shaft``: shaft speed (rad/s) and angle since the last keyphasor pulse (rad)."""
-    return _joint_state(factory, stamp_ns, SHAFT_NAMES, [speed_rad_s, angle_rad], None, frame_id)
+    return joint_state(factory, stamp_ns, SHAFT_NAMES, [speed_rad_s, angle_rad], None, frame_id)
 
 
 def identifiability_to_msg(factory: MessageFactory, stamp_ns: int, estimate: Any, predicted_std: Any,
@@ -165,7 +165,7 @@ def identifiability_to_msg(factory: MessageFactory, stamp_ns: int, estimate: Any
         codes = [IDENTIFIABILITY_STATUS.index(s) for s in status]
     except ValueError as exc:
         raise InputError(f"identifiability status must be one of {IDENTIFIABILITY_STATUS}") from exc
-    return _joint_state(factory, stamp_ns, COEFFICIENT_NAMES_WITH_UNITS, estimate, predicted_std, frame_id, codes)
+    return joint_state(factory, stamp_ns, COEFFICIENT_NAMES_WITH_UNITS, estimate, predicted_std, frame_id, codes)
 
 
 def diagnostics_to_msg(factory: MessageFactory, stamp_ns: int, statuses: Sequence[DiagnosticRecord]) -> Any:
@@ -181,35 +181,35 @@ def diagnostics_to_msg(factory: MessageFactory, stamp_ns: int, statuses: Sequenc
 # --------------------------------------------------------------------------- decoders
 def coefficients_from_msg(msg: Any) -> Coefficients:
     """Decode ``~/coefficients`` into estimate and std in coefficient order."""
-    return Coefficients(*_joint_values(msg, COEFFICIENT_NAMES_WITH_UNITS, "coefficients message"))
+    return Coefficients(*joint_values(msg, COEFFICIENT_NAMES_WITH_UNITS, "coefficients message"))
 
 
 def covariance_from_msg(msg: Any) -> Covariance:
     """Decode ``~/coefficients/covariance`` into an 8x8 matrix."""
-    stamp_ns, pos, _ = _joint_values(msg, COVARIANCE_NAMES, "covariance message")
+    stamp_ns, pos, _ = joint_values(msg, COVARIANCE_NAMES, "covariance message")
     return Covariance(stamp_ns, pos.reshape(_N_COEF, _N_COEF))
 
 
 def innovation_from_msg(msg: Any) -> Innovation:
     """Decode ``~/innovation``."""
-    return Innovation(*_joint_values(msg, INNOVATION_NAMES, "innovation message"))
+    return Innovation(*joint_values(msg, INNOVATION_NAMES, "innovation message"))
 
 
 def nis_from_msg(msg: Any) -> Nis:
     """Decode ``~/nis``."""
-    stamp_ns, pos, _ = _joint_values(msg, NIS_NAMES, "nis message")
+    stamp_ns, pos, _ = joint_values(msg, NIS_NAMES, "nis message")
     return Nis(stamp_ns, float(pos[0]), float(pos[1]), float(pos[2]))
 
 
 def shaft_from_msg(msg: Any) -> Shaft:
     """Decode ``~/shaft``."""
-    stamp_ns, pos, _ = _joint_values(msg, SHAFT_NAMES, "shaft message")
+    stamp_ns, pos, _ = joint_values(msg, SHAFT_NAMES, "shaft message")
     return Shaft(stamp_ns, float(pos[0]), float(pos[1]))
 
 
 def identifiability_from_msg(msg: Any) -> Identifiability:
     """Decode ``~/identifiability``."""
-    stamp_ns, pos, vel = _joint_values(msg, COEFFICIENT_NAMES_WITH_UNITS, "identifiability message")
+    stamp_ns, pos, vel = joint_values(msg, COEFFICIENT_NAMES_WITH_UNITS, "identifiability message")
     index = {str(n): i for i, n in enumerate(msg.name)}
     effort = np.asarray(msg.effort, dtype=np.float64)
     if effort.size != len(index):

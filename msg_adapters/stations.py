@@ -46,7 +46,7 @@ from msg_adapters._common import expect_type, header_stamp_ns
 from msg_adapters.cloud import FLOAT64, POINTCLOUD2, UINT32, cloud_columns, cloud_from_columns
 from msg_adapters.factory import MessageFactory
 from msg_adapters.inputs import PROBE_FIELDS, check_block
-from msg_adapters.outputs import _joint_state, _joint_values
+from msg_adapters.outputs import joint_state, joint_values
 
 ACCEL_FIELDS: dict[str, int] = {"ax_m_s2": FLOAT64, "ay_m_s2": FLOAT64, "t_offset_ns": UINT32}
 SENSOR_FIELDS: dict[str, dict[str, int]] = {"probe": PROBE_FIELDS, "accelerometer": ACCEL_FIELDS}
@@ -119,13 +119,13 @@ def station_to_msg(factory: MessageFactory, stamp_ns: int, station: str, mean: A
         c = np.asarray(disp_cov, dtype=np.float64)
         den = float(np.sqrt(c[0, 0] * c[1, 1]))
         corr = float(np.clip(c[0, 1] / den, -1.0, 1.0)) if den > 0 else 0.0
-    return _joint_state(factory, stamp_ns, STATION_NAMES + (STATION_CORR_NAME,), np.append(m, corr),
+    return joint_state(factory, stamp_ns, STATION_NAMES + (STATION_CORR_NAME,), np.append(m, corr),
                         np.append(s, 0.0), station)
 
 
 def station_from_msg(msg: Any) -> StationState:
     """Decode ``~/stations/<station>`` (station name from ``header.frame_id``)."""
-    stamp_ns, mean, std = _joint_values(msg, STATION_NAMES, "station message")
+    stamp_ns, mean, std = joint_values(msg, STATION_NAMES, "station message")
     index = {str(n): i for i, n in enumerate(msg.name)}
     corr = float(msg.position[index[STATION_CORR_NAME]]) if STATION_CORR_NAME in index else 0.0
     cxy = corr * std[0] * std[1]

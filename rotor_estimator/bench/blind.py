@@ -30,23 +30,13 @@ from rotor_estimator.core.config import RigFile, load_rig_file
 from rotor_estimator.core.errors import InputError
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.core.simulator import Impact
+from rotor_estimator.bench.cases import WARMUP_S, BlindCase, nominal_unabsorbed_rms, random_impacts  # noqa: F401
 from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
 
 SINGLE_EFFECTS = ("residual_unbalance", "tach_offset", "probe_runout", "misalignment", "bearing_cubic",
                   "pedestal", "shaft_bending", "probe_gain_orientation", "timing_skew")
 PAIRS = (("probe_runout", "bearing_cubic"), ("misalignment", "timing_skew"),
          ("residual_unbalance", "pedestal"), ("probe_gain_orientation", "shaft_bending"))
-WARMUP_S = 0.010
-
-
-@dataclass
-class BlindCase:
-    """One generated case: what the diagnosis sees (recording, rig file) and the withheld label."""
-
-    case_id: str
-    recording: RigRecording
-    rig_file: RigFile
-    label: dict
 
 
 def _shape(name: str, s: float, rng: np.random.Generator, ctx: dict) -> dict:
@@ -166,47 +156,6 @@ def _with_columns(q: np.ndarray, cols: list[np.ndarray]) -> np.ndarray:
     return np.hstack([q, extra])
 
 
-def nominal_unabsorbed_rms(recording: RigRecording, rig, starts, *, max_nfev: int = 25) -> float:
-    """RMS (m) of a noise-free record left after the diagnosis's own nominal output-error fit.
-
-    A cheap proxy of the realized nominal residual: the shaft track from the keyphasor
-    (as the diagnosis sees it), the exact-discretization re-simulation of
-    :mod:`.context` and a Levenberg-Marquardt fit of the 8 coefficients (DC projected
-    out) from each of ``starts``; the smallest residual wins. No EKF (the diagnosis's
-    EKF only supplies a start). ``recording.probes_m`` must be the clean signal.
-    """
-    from scipy.optimize import least_squares
-
-    from rotor_estimator.core.model import imbalance_force, impact_force, rotor_matrices
-    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, _simulate_nominal, shaft_track
-    from rotor_estimator.diagnosis.linsim import SpeedSchedule
-
-    shaft = shaft_track(recording)
-    mats = rotor_matrices(rig)
-    t = recording.time_s()
-    h = float(np.median(np.diff(t)))
-    y = recording.probes_m
-    mask = shaft.valid & (t >= t[0] + WARMUP_S)
-    schedule = SpeedSchedule.from_speed(shaft.speed_rad_s)
-    u_s = imbalance_force(mats, shaft.angle_rad, shaft.speed_rad_s, shaft.accel_rad_s2)
-    u_z = impact_force(mats, recording.impact_force_n)
-
-    def residual(p):
-        yn, _, _ = _simulate_nominal(rig, mats, p * COEFFICIENT_SCALE, t, shaft, schedule, u_s, u_z, h)
-        e = (y - yn)[mask]
-        return (e - e.mean(axis=0)).ravel() * 1e6
-
-    best = float("inf")
-    for r0 in starts:
-        try:
-            res = least_squares(residual, np.asarray(r0, float) / COEFFICIENT_SCALE, method="lm",
-                                diff_step=1e-4, max_nfev=max_nfev * 9)
-        except (ValueError, np.linalg.LinAlgError):
-            continue
-        best = min(best, float(np.sqrt(2 * res.cost / res.fun.size)) * 1e-6)
-    return best
-
-
 def calibrate(rig, scenario, names, rng, target_rms_m, *, prior_coefficients=None,
               outer_iterations: int = 3) -> tuple[HiddenEffects, dict, float, dict]:
     """Effect strengths whose residual after the nominal fit hits ``target_rms_m``; also the RMS reached (m)
@@ -322,15 +271,6 @@ def _cap(name: str, s: float, ctx: dict) -> float:
     return min(s, STRENGTH_CAP.get(name, math.inf))
 
 
-def _random_impacts(rng, duration_s) -> tuple[Impact, ...]:
-    out = []
-    for _ in range(int(rng.integers(1, 4))):
-        mag, ang = rng.uniform(200.0, 600.0), rng.uniform(0, 2 * np.pi)
-        start = round(float(rng.uniform(0.03, 0.8 * duration_s)) / 50e-6) * 50e-6
-        out.append(Impact(start, 50e-6, float(mag * np.cos(ang)), float(mag * np.sin(ang))))
-    return tuple(out)
-
-
 #: Smallest gap (nominal residual RMS / noise RMS) a case with a hidden effect may have: the near-limit
 #: share of the set is drawn in 1.2-2x (the issue's definition of "near the detection limit").
 MIN_GAP = 1.2
@@ -359,7 +299,7 @@ def make_case(case_id: str, names: tuple[str, ...], seed: int, *, near_limit: bo
         duration = float(rng.uniform(0.25, 0.3))
         r_true = base_rig.true_coefficients.as_array() * rng.uniform(0.7, 1.3, size=8)
         scenario = EffectScenario(speed_rad_s=speed, duration_s=duration, lead_in_s=0.3,
-                                  impacts=_random_impacts(rng, duration), noise_std_m=noise, coefficients=r_true)
+                                  impacts=random_impacts(rng, duration), noise_std_m=noise, coefficients=r_true)
         rig = replace(base_rig, speed_rad_s=speed, noise_std_m=noise)
         gaps = [float(rng.uniform(MIN_GAP, 2.0) if near_limit else rng.uniform(2.0, 4.0)) for _ in names]
         if not names:
@@ -510,9 +450,9 @@ def write_blind_set(out_dir: str | Path, n_cases: int = 40, seed: int = 2024, *,
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
 
-        from rotor_estimator.bench.diagnosis import _single_thread_worker
+        from rotor_estimator.bench.workers import single_thread_worker
 
-        with ProcessPoolExecutor(max_workers=jobs, initializer=_single_thread_worker) as pool:
+        with ProcessPoolExecutor(max_workers=jobs, initializer=single_thread_worker) as pool:
             futures = [pool.submit(fn, a) for fn, a in tasks]
             for f in futures:
                 _store(f.result())

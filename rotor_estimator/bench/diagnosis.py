@@ -21,20 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from rotor_estimator.bench.blind import MIN_GAP, load_recording, write_blind_set
-
-
-def _single_thread_worker() -> None:
-    """Pool initializer: one BLAS thread per worker (``jobs`` workers on ``jobs`` cores, no oversubscription)."""
-    import os
-
-    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[k] = "1"
-    try:
-        from threadpoolctl import threadpool_limits
-
-        globals()["_LIMITS"] = threadpool_limits(1)
-    except ImportError:
-        pass
+from rotor_estimator.bench.workers import single_thread_worker
 
 
 def diagnose_case(case_dir: str) -> dict:
@@ -154,7 +141,7 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
     write_blind_set(out, n_cases, seed, use_ross=use_ross, progress=progress, jobs=jobs)
     t_gen = time.time() - t0
     case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
-    with ProcessPoolExecutor(max_workers=max(1, jobs), initializer=_single_thread_worker) as pool:
+    with ProcessPoolExecutor(max_workers=max(1, jobs), initializer=single_thread_worker) as pool:
         results = list(pool.map(diagnose_case, case_dirs))
     labels = json.loads((out / "labels" / "labels.json").read_text())  # opened only now
     s = score(results, labels)

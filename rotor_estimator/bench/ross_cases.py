@@ -213,7 +213,7 @@ def _pedestal_for_gap(diameter_m, r, speed, impacts, duration, noise_std_m, mass
     record leaves after the diagnosis's own nominal fit (:func:`.blind.nominal_unabsorbed_rms`),
     so a ROSS pedestal case lies in the intended range instead of hiding under the noise.
     """
-    from rotor_estimator.bench.blind import nominal_unabsorbed_rms
+    from rotor_estimator.bench.cases import nominal_unabsorbed_rms
 
     best, best_err, best_gap = None, math.inf, 1.0
     starts = [r, base.estimator.initial_coefficients.as_array()]
@@ -234,7 +234,7 @@ def _pedestal_for_gap(diameter_m, r, speed, impacts, duration, noise_std_m, mass
 
 
 def make_case(case_id: str, names: tuple[str, ...], seed: int, *, diameter_m: float, pedestal=None):
-    from rotor_estimator.bench.blind import BlindCase, _random_impacts
+    from rotor_estimator.bench.cases import BlindCase, random_impacts
 
     rng = np.random.default_rng(seed)
     speed = float(rng.uniform(10000, 20000)) * math.pi / 30
@@ -242,7 +242,7 @@ def make_case(case_id: str, names: tuple[str, ...], seed: int, *, diameter_m: fl
     duration = 0.25
     base = load_rig_file()
     r_true = base.rig.true_coefficients.as_array() * rng.uniform(0.8, 1.2, size=8)
-    impacts = _random_impacts(rng, duration)
+    impacts = random_impacts(rng, duration)
     ped, target_gap, redraws = None, [], 0
     if pedestal == "auto":
         target_gap = [float(rng.uniform(1.2, 4.0))]

@@ -58,7 +58,7 @@ def _require_mapping(value: Any, path: str) -> Mapping[str, Any]:
     return value
 
 
-def _get(mapping: Mapping[str, Any], key: str, path: str, *, default: Any = ...) -> Any:
+def get_field(mapping: Mapping[str, Any], key: str, path: str, *, default: Any = ...) -> Any:
     _require_mapping(mapping, path)
     if key not in mapping:
         if default is ...:
@@ -67,7 +67,7 @@ def _get(mapping: Mapping[str, Any], key: str, path: str, *, default: Any = ...)
     return mapping[key]
 
 
-def _number(value: Any, path: str, unit: str, *, low: float | None = None, high: float | None = None,
+def number_field(value: Any, path: str, unit: str, *, low: float | None = None, high: float | None = None,
             low_open: bool = False, allow_zero: bool = True) -> float:
     if isinstance(value, str):
         # PyYAML (YAML 1.1) reads 500.0e3 as a string; accept plain numeric text.
@@ -105,7 +105,7 @@ def _name(value: Any, path: str) -> str:
     return text
 
 
-def _reject_unknown(mapping: Mapping[str, Any], allowed: set[str], path: str) -> None:
+def reject_unknown_keys(mapping: Mapping[str, Any], allowed: set[str], path: str) -> None:
     _require_mapping(mapping, path)
     unknown = sorted((str(k) for k in mapping if k not in allowed))
     if unknown:
@@ -147,8 +147,8 @@ class BearingCoefficients:
         values = []
         for name, long_name, unit in zip(COEFFICIENT_NAMES, COEFFICIENT_NAMES_WITH_UNITS, COEFFICIENT_UNITS):
             key = long_name if long_name in mapping else name
-            values.append(_number(_get(mapping, key, path), f"{path}.{long_name}", unit))
-        _reject_unknown(mapping, set(COEFFICIENT_NAMES) | set(COEFFICIENT_NAMES_WITH_UNITS), path)
+            values.append(number_field(get_field(mapping, key, path), f"{path}.{long_name}", unit))
+        reject_unknown_keys(mapping, set(COEFFICIENT_NAMES) | set(COEFFICIENT_NAMES_WITH_UNITS), path)
         return cls(*values)
 
     def to_mapping(self) -> dict[str, float]:
@@ -200,9 +200,9 @@ class RigConfig:
 
     def validate(self) -> "RigConfig":
         p = "rig"
-        _number(self.shaft_mass_kg, f"{p}.shaft.mass_kg", "kg", low=0.0, low_open=True)
-        _number(self.polar_inertia_kg_m2, f"{p}.shaft.polar_inertia_kg_m2", "kg*m^2", low=0.0)
-        _number(self.transverse_inertia_kg_m2, f"{p}.shaft.transverse_inertia_kg_m2", "kg*m^2", low=0.0, low_open=True)
+        number_field(self.shaft_mass_kg, f"{p}.shaft.mass_kg", "kg", low=0.0, low_open=True)
+        number_field(self.polar_inertia_kg_m2, f"{p}.shaft.polar_inertia_kg_m2", "kg*m^2", low=0.0)
+        number_field(self.transverse_inertia_kg_m2, f"{p}.shaft.transverse_inertia_kg_m2", "kg*m^2", low=0.0, low_open=True)
         if not self.bearing1_position_m < self.bearing2_position_m:
             raise ConfigError(f"{p}.bearings: bearing1.axial_position_m ({self.bearing1_position_m:g} m) must be "
                               f"less than bearing2.axial_position_m ({self.bearing2_position_m:g} m)")
@@ -211,8 +211,8 @@ class RigConfig:
                               f"(both at {self.probe1_position_m:g} m): the rigid-body tilt would be unobservable")
         if self.speed_rad_s < 0:
             raise ConfigError(f"{p}.operating.speed_rpm: must be >= 0 rpm")
-        _number(self.sample_rate_hz, f"{p}.operating.sample_rate_hz", "Hz", low=1.0, high=1e7)
-        _number(self.noise_std_m, f"{p}.operating.noise_std_m", "m", low=0.0, high=1e-2)
+        number_field(self.sample_rate_hz, f"{p}.operating.sample_rate_hz", "Hz", low=1.0, high=1e7)
+        number_field(self.noise_std_m, f"{p}.operating.noise_std_m", "m", low=0.0, high=1e-2)
         return self
 
 
@@ -253,11 +253,11 @@ class EstimatorConfig:
         for name, value in zip(COEFFICIENT_NAMES_WITH_UNITS, self.coefficient_random_walk.as_array()):
             if value < 0:
                 raise ConfigError(f"{p}.coefficient_random_walk.{name}: must be >= 0, got {value:g}")
-        _number(self.initial_displacement_std_m, f"{p}.initial_displacement_std_m", "m", low=0.0, low_open=True)
-        _number(self.initial_velocity_std_m_s, f"{p}.initial_velocity_std_m_s", "m/s", low=0.0, low_open=True)
-        _number(self.measurement_noise_std_m, f"{p}.measurement_noise_std_m", "m", low=0.0, low_open=True, high=1e-2)
-        _number(self.motion_process_noise_accel_m_s2, f"{p}.motion_process_noise_accel_m_s2", "m/s^2/sqrt(Hz)", low=0.0)
-        _number(self.innovation_gate_nis, f"{p}.innovation_gate_nis", "(dimensionless)", low=1.0)
+        number_field(self.initial_displacement_std_m, f"{p}.initial_displacement_std_m", "m", low=0.0, low_open=True)
+        number_field(self.initial_velocity_std_m_s, f"{p}.initial_velocity_std_m_s", "m/s", low=0.0, low_open=True)
+        number_field(self.measurement_noise_std_m, f"{p}.measurement_noise_std_m", "m", low=0.0, low_open=True, high=1e-2)
+        number_field(self.motion_process_noise_accel_m_s2, f"{p}.motion_process_noise_accel_m_s2", "m/s^2/sqrt(Hz)", low=0.0)
+        number_field(self.innovation_gate_nis, f"{p}.innovation_gate_nis", "(dimensionless)", low=1.0)
         if not isinstance(self.passes, int) or isinstance(self.passes, bool) or not 1 <= self.passes <= 20:
             raise ConfigError(f"{p}.passes: must be an integer from 1 to 20, got {self.passes!r}")
         return self
@@ -277,63 +277,63 @@ _RIG_KEYS = {"name", "shaft", "bearings", "probes", "impact", "imbalances", "ope
 
 def rig_from_mapping(data: Mapping[str, Any], path: str = "rig") -> RigConfig:
     """Build and validate a :class:`RigConfig` from a parsed YAML mapping."""
-    _reject_unknown(data, _RIG_KEYS, path)
-    shaft = _get(data, "shaft", path)
-    _reject_unknown(shaft, {"mass_kg", "polar_inertia_kg_m2", "transverse_inertia_kg_m2"}, f"{path}.shaft")
-    bearings = _get(data, "bearings", path)
-    _reject_unknown(bearings, {"bearing1", "bearing2"}, f"{path}.bearings")
-    probes = _get(data, "probes", path)
-    _reject_unknown(probes, {"probe1", "probe2"}, f"{path}.probes")
-    operating = _get(data, "operating", path)
-    _reject_unknown(operating, {"speed_rpm", "sample_rate_hz", "noise_std_m"}, f"{path}.operating")
-    impact = _get(data, "impact", path, default={"axial_position_m": 0.0})
-    _reject_unknown(impact, {"axial_position_m"}, f"{path}.impact")
+    reject_unknown_keys(data, _RIG_KEYS, path)
+    shaft = get_field(data, "shaft", path)
+    reject_unknown_keys(shaft, {"mass_kg", "polar_inertia_kg_m2", "transverse_inertia_kg_m2"}, f"{path}.shaft")
+    bearings = get_field(data, "bearings", path)
+    reject_unknown_keys(bearings, {"bearing1", "bearing2"}, f"{path}.bearings")
+    probes = get_field(data, "probes", path)
+    reject_unknown_keys(probes, {"probe1", "probe2"}, f"{path}.probes")
+    operating = get_field(data, "operating", path)
+    reject_unknown_keys(operating, {"speed_rpm", "sample_rate_hz", "noise_std_m"}, f"{path}.operating")
+    impact = get_field(data, "impact", path, default={"axial_position_m": 0.0})
+    reject_unknown_keys(impact, {"axial_position_m"}, f"{path}.impact")
 
     def position(section: Mapping[str, Any], key: str, sp: str) -> float:
-        item = _get(section, key, sp)
-        _reject_unknown(item, {"axial_position_m"}, f"{sp}.{key}")
-        return _number(_get(item, "axial_position_m", f"{sp}.{key}"), f"{sp}.{key}.axial_position_m", "m",
+        item = get_field(section, key, sp)
+        reject_unknown_keys(item, {"axial_position_m"}, f"{sp}.{key}")
+        return number_field(get_field(item, "axial_position_m", f"{sp}.{key}"), f"{sp}.{key}.axial_position_m", "m",
                        low=-100.0, high=100.0)
 
     imbalances = []
-    raw_imbalances = _get(data, "imbalances", path, default=[])
+    raw_imbalances = get_field(data, "imbalances", path, default=[])
     if not isinstance(raw_imbalances, list):
         raise ConfigError(f"{path}.imbalances: expected a list of imbalance masses")
     for i, item in enumerate(raw_imbalances):
         ip = f"{path}.imbalances[{i}]"
-        _reject_unknown(item, {"mass_kg", "radius_m", "phase_deg", "axial_position_m"}, ip)
+        reject_unknown_keys(item, {"mass_kg", "radius_m", "phase_deg", "axial_position_m"}, ip)
         imbalances.append(Imbalance(
-            mass_kg=_number(_get(item, "mass_kg", ip), f"{ip}.mass_kg", "kg", low=0.0, high=100.0),
-            radius_m=_number(_get(item, "radius_m", ip), f"{ip}.radius_m", "m", low=0.0, high=10.0),
-            phase_rad=math.radians(_number(_get(item, "phase_deg", ip), f"{ip}.phase_deg", "deg",
+            mass_kg=number_field(get_field(item, "mass_kg", ip), f"{ip}.mass_kg", "kg", low=0.0, high=100.0),
+            radius_m=number_field(get_field(item, "radius_m", ip), f"{ip}.radius_m", "m", low=0.0, high=10.0),
+            phase_rad=math.radians(number_field(get_field(item, "phase_deg", ip), f"{ip}.phase_deg", "deg",
                                            low=-360.0, high=360.0)),
-            axial_position_m=_number(_get(item, "axial_position_m", ip), f"{ip}.axial_position_m", "m",
+            axial_position_m=number_field(get_field(item, "axial_position_m", ip), f"{ip}.axial_position_m", "m",
                                      low=-100.0, high=100.0),
         ))
     true_coefficients = None
     if "true_coefficients" in data and data["true_coefficients"] is not None:
         true_coefficients = BearingCoefficients.from_mapping(data["true_coefficients"], f"{path}.true_coefficients")
     rig = RigConfig(
-        name=_name(_get(data, "name", path, default="unnamed rig"), f"{path}.name"),
-        shaft_mass_kg=_number(_get(shaft, "mass_kg", f"{path}.shaft"), f"{path}.shaft.mass_kg", "kg",
+        name=_name(get_field(data, "name", path, default="unnamed rig"), f"{path}.name"),
+        shaft_mass_kg=number_field(get_field(shaft, "mass_kg", f"{path}.shaft"), f"{path}.shaft.mass_kg", "kg",
                               low=0.0, low_open=True, high=1e6),
-        polar_inertia_kg_m2=_number(_get(shaft, "polar_inertia_kg_m2", f"{path}.shaft"),
+        polar_inertia_kg_m2=number_field(get_field(shaft, "polar_inertia_kg_m2", f"{path}.shaft"),
                                     f"{path}.shaft.polar_inertia_kg_m2", "kg*m^2", low=0.0, high=1e6),
-        transverse_inertia_kg_m2=_number(_get(shaft, "transverse_inertia_kg_m2", f"{path}.shaft"),
+        transverse_inertia_kg_m2=number_field(get_field(shaft, "transverse_inertia_kg_m2", f"{path}.shaft"),
                                          f"{path}.shaft.transverse_inertia_kg_m2", "kg*m^2",
                                          low=0.0, low_open=True, high=1e6),
         bearing1_position_m=position(bearings, "bearing1", f"{path}.bearings"),
         bearing2_position_m=position(bearings, "bearing2", f"{path}.bearings"),
         probe1_position_m=position(probes, "probe1", f"{path}.probes"),
         probe2_position_m=position(probes, "probe2", f"{path}.probes"),
-        impact_position_m=_number(_get(impact, "axial_position_m", f"{path}.impact", default=0.0),
+        impact_position_m=number_field(get_field(impact, "axial_position_m", f"{path}.impact", default=0.0),
                                   f"{path}.impact.axial_position_m", "m", low=-100.0, high=100.0),
         imbalances=tuple(imbalances),
-        speed_rad_s=_number(_get(operating, "speed_rpm", f"{path}.operating"), f"{path}.operating.speed_rpm",
+        speed_rad_s=number_field(get_field(operating, "speed_rpm", f"{path}.operating"), f"{path}.operating.speed_rpm",
                             "rpm", low=0.0, high=1e6) * 2.0 * math.pi / 60.0,
-        sample_rate_hz=_number(_get(operating, "sample_rate_hz", f"{path}.operating"),
+        sample_rate_hz=number_field(get_field(operating, "sample_rate_hz", f"{path}.operating"),
                                f"{path}.operating.sample_rate_hz", "Hz", low=1.0, high=1e7),
-        noise_std_m=_number(_get(operating, "noise_std_m", f"{path}.operating"), f"{path}.operating.noise_std_m",
+        noise_std_m=number_field(get_field(operating, "noise_std_m", f"{path}.operating"), f"{path}.operating.noise_std_m",
                             "m", low=0.0, high=1e-2),
         true_coefficients=true_coefficients,
     )
@@ -347,14 +347,14 @@ _EST_KEYS = {"initial_coefficients", "initial_coefficient_std", "initial_displac
 
 def estimator_from_mapping(data: Mapping[str, Any], path: str = "estimator") -> EstimatorConfig:
     """Build and validate an :class:`EstimatorConfig` from a parsed YAML mapping."""
-    _reject_unknown(data, _EST_KEYS, path)
+    reject_unknown_keys(data, _EST_KEYS, path)
     defaults = EstimatorConfig(initial_coefficients=BearingCoefficients(*([0.0] * 8)),
                                initial_coefficient_std=BearingCoefficients(*([1.0] * 8)))
     kwargs: dict[str, Any] = {
         "initial_coefficients": BearingCoefficients.from_mapping(
-            _get(data, "initial_coefficients", path), f"{path}.initial_coefficients"),
+            get_field(data, "initial_coefficients", path), f"{path}.initial_coefficients"),
         "initial_coefficient_std": BearingCoefficients.from_mapping(
-            _get(data, "initial_coefficient_std", path), f"{path}.initial_coefficient_std"),
+            get_field(data, "initial_coefficient_std", path), f"{path}.initial_coefficient_std"),
     }
     if "coefficient_random_walk" in data:
         kwargs["coefficient_random_walk"] = BearingCoefficients.from_mapping(
@@ -365,7 +365,7 @@ def estimator_from_mapping(data: Mapping[str, Any], path: str = "estimator") -> 
         if f.name == "passes":
             kwargs["passes"] = data["passes"]
         else:
-            kwargs[f.name] = _number(data[f.name], f"{path}.{f.name}", "SI", low=0.0)
+            kwargs[f.name] = number_field(data[f.name], f"{path}.{f.name}", "SI", low=0.0)
     del defaults
     return EstimatorConfig(**kwargs).validate()
 
@@ -507,10 +507,10 @@ def load_rig_file(path: str | Path | None = None) -> RigFile:
     if not isinstance(data, Mapping):
         raise ConfigError(f"rig file {path}: expected a mapping with 'rig' and 'estimator' sections, "
                           f"got {_kind(data)}")
-    _reject_unknown(data, {"rig", "estimator"}, "(top level)")
+    reject_unknown_keys(data, {"rig", "estimator"}, "(top level)")
     try:
-        rig = rig_from_mapping(_get(data, "rig", "(top level)"))
-        estimator = estimator_from_mapping(_get(data, "estimator", "(top level)"))
+        rig = rig_from_mapping(get_field(data, "rig", "(top level)"))
+        estimator = estimator_from_mapping(get_field(data, "estimator", "(top level)"))
     except ConfigError as exc:
         raise ConfigError(f"rig file {path}: {exc}") from None
     return RigFile(rig=rig, estimator=estimator)

@@ -135,7 +135,7 @@ class FitContext:
         return 1.0 / self.sample_rate_hz
 
 
-def _simulate_nominal(rig, mats, r, t_s, shaft, schedule, u_smooth, u_step, h_s):
+def simulate_nominal(rig, mats, r, t_s, shaft, schedule, u_smooth, u_step, h_s):
     out, states = simulate_linear(lambda w: models.rigid_state_matrix(mats, r, w), models.rigid_input(mats),
                                   models.rigid_output(mats), h_s, schedule, shaft.angle_rad, u_smooth, u_step)
     return out[:, :4], out[:, 4:], states[:, 4:8]
@@ -143,13 +143,13 @@ def _simulate_nominal(rig, mats, r, t_s, shaft, schedule, u_smooth, u_step, h_s)
 
 def _nominal_products(rig, mats, r_hat, t, shaft, schedule, u_s, u_z, h):
     """Nominal output, probe velocity, bearing displacement and coefficient sensitivity at ``r_hat``."""
-    y_nom, v_nom, z_nom = _simulate_nominal(rig, mats, r_hat, t, shaft, schedule, u_s, u_z, h)
+    y_nom, v_nom, z_nom = simulate_nominal(rig, mats, r_hat, t, shaft, schedule, u_s, u_z, h)
     jac = np.zeros((len(t), 4, 8))
     p_hat = r_hat / COEFFICIENT_SCALE
     for i in range(8):
         step = np.zeros(8)
         step[i] = 1e-3 * max(abs(p_hat[i]), 1.0)
-        yp, _, _ = _simulate_nominal(rig, mats, r_hat + step * COEFFICIENT_SCALE, t, shaft, schedule, u_s, u_z, h)
+        yp, _, _ = simulate_nominal(rig, mats, r_hat + step * COEFFICIENT_SCALE, t, shaft, schedule, u_s, u_z, h)
         jac[:, :, i] = (yp - y_nom) / step[i]
     return y_nom, v_nom, z_nom, jac
 
@@ -170,7 +170,7 @@ def with_coefficients(ctx: "FitContext", coefficients: np.ndarray) -> "FitContex
     from dataclasses import replace
 
     r = np.asarray(coefficients, float)
-    y_nom, v_nom, z_nom = _simulate_nominal(ctx.rig, ctx.mats, r, ctx.t_s, ctx.shaft, ctx.schedule,
+    y_nom, v_nom, z_nom = simulate_nominal(ctx.rig, ctx.mats, r, ctx.t_s, ctx.shaft, ctx.schedule,
                                             ctx.known_smooth_n, ctx.known_step_n, ctx.period_s)
     return replace(ctx, coefficients=r, y_nom_m=y_nom, v_nom_m_s=v_nom, z_nom_m=z_nom, _cache={})
 
@@ -216,7 +216,7 @@ def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConf
     # 2. output-error refinement (DC projected out)
     def residual(p):
         r = p * COEFFICIENT_SCALE
-        yn, _, _ = _simulate_nominal(rig, mats, r, t, shaft, schedule, u_s, u_z, h)
+        yn, _, _ = simulate_nominal(rig, mats, r, t, shaft, schedule, u_s, u_z, h)
         return _project_dc((y_clean - yn)[mask]).ravel() * 1e6  # micrometres: meaningful LM tolerances
 
     starts = [r_ekf / COEFFICIENT_SCALE, config.initial_coefficients.as_array() / COEFFICIENT_SCALE]

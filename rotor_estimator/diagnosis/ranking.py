@@ -417,12 +417,12 @@ def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 
     model itself; this re-evaluates the nominal from there so that the improvement is not
     credited to the effect.
     """
-    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, _simulate_nominal
+    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, simulate_nominal
 
     rows = ctx.mask
 
     def fun(p):
-        yn, _, _ = _simulate_nominal(ctx.rig, ctx.mats, p * COEFFICIENT_SCALE, ctx.t_s, ctx.shaft, ctx.schedule,
+        yn, _, _ = simulate_nominal(ctx.rig, ctx.mats, p * COEFFICIENT_SCALE, ctx.t_s, ctx.shaft, ctx.schedule,
                                      ctx.known_smooth_n, ctx.known_step_n, ctx.period_s)
         e = (ctx.y_m - yn)[rows]
         return (e - e.mean(axis=0)).ravel() * RESIDUAL_SCALE

@@ -203,7 +203,8 @@ def _nonzero_runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[0::2].tolist(), edges[1::2].tolist()))
 
 
-def _tag(topic: str, stream: Iterator[tuple[int, Any]]) -> Iterator[tuple[int, int, str, Any]]:
+def tag_stream(topic: str, stream: Iterator[tuple[int, Any]]) -> Iterator[tuple[int, int, str, Any]]:
+    """``(stamp_ns, index, topic, message)`` for each message of one topic: the key that heap-merges streams."""
     return ((t, k, topic, m) for k, (t, m) in enumerate(stream))
 
 
@@ -251,7 +252,7 @@ def write_input_bag(path: str | Path, recording: RigRecording, *, block_size: in
     with BagWriter(path, recording.meta) as writer:
         conns = {topic: writer.add_connection(topic, typename, typestore=ts)
                  for topic, (typename, _) in streams.items()}
-        tagged = [_tag(topic, gen) for topic, (_, gen) in streams.items()]
+        tagged = [tag_stream(topic, gen) for topic, (_, gen) in streams.items()]
         for log_time_ns, _, topic, msg in heapq.merge(*tagged, key=lambda item: (item[0], item[1])):
             writer.write(conns[topic], log_time_ns, ts.serialize_cdr(msg, msg.__msgtype__))
     return path

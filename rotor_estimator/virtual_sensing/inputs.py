@@ -21,7 +21,7 @@ import numpy as np
 
 import msg_adapters as ma
 
-from rotor_estimator.io.bags import BagWriter, OutputBagWriter, _tag, bag_topics, iter_bag_messages
+from rotor_estimator.io.bags import BagWriter, OutputBagWriter, tag_stream, bag_topics, iter_bag_messages
 from rotor_estimator.core.errors import BagError, InputError
 from rotor_estimator.core.flexible.description import RotorDescription
 from rotor_estimator.virtual_sensing.estimator import LeaveOneOutReport, StationEstimate
@@ -109,7 +109,7 @@ def write_sensor_bag(path: str | Path, rotor: RotorDescription, stamps_ns: np.nd
     streams[keyphasor_topic] = ("sensor_msgs/msg/TimeReference", pulse_msgs())
     with BagWriter(path, {"rotor": rotor.name, **(meta or {})}) as writer:
         conns = {t: writer.add_connection(t, typename, typestore=ts) for t, (typename, _) in streams.items()}
-        tagged = [_tag(t, gen) for t, (_, gen) in streams.items()]
+        tagged = [tag_stream(t, gen) for t, (_, gen) in streams.items()]
         for log_ns, _, topic, msg in heapq.merge(*tagged, key=lambda item: (item[0], item[1])):
             writer.write(conns[topic], log_ns, ts.serialize_cdr(msg, msg.__msgtype__))
     return path

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-from rotor_estimator.core.config import _get, _number, _reject_unknown, load_yaml_file
+from rotor_estimator.core.config import get_field, number_field, reject_unknown_keys, load_yaml_file
 from rotor_estimator.core.errors import ConfigError
 
 ROTORS_DIR = Path(__file__).resolve().parents[2] / "rotors"
@@ -195,14 +195,14 @@ class RotorDescription:
 
 # --------------------------------------------------------------------------- loading
 def _list(data: Mapping[str, Any], key: str, path: str) -> list[Any]:
-    items = _get(data, key, path, default=[]) or []
+    items = get_field(data, key, path, default=[]) or []
     if not isinstance(items, list):
         raise ConfigError(f"{path}.{key}: expected a list")
     return items
 
 
 def _station(item: Mapping[str, Any], ip: str, length: float) -> float:
-    return _number(_get(item, "station_axial_m", ip), f"{ip}.station_axial_m", "m", low=0.0, high=length)
+    return number_field(get_field(item, "station_axial_m", ip), f"{ip}.station_axial_m", "m", low=0.0, high=length)
 
 
 def _opt_name(item: Mapping[str, Any], key: str, ip: str, names: set[str]) -> str | None:
@@ -216,26 +216,26 @@ def _opt_name(item: Mapping[str, Any], key: str, ip: str, names: set[str]) -> st
 
 def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDescription:
     """Build and validate a :class:`RotorDescription` from a parsed YAML mapping."""
-    _reject_unknown(data, {"name", "material", "shaft", "disks", "bearings", "pedestals", "unbalances",
+    reject_unknown_keys(data, {"name", "material", "shaft", "disks", "bearings", "pedestals", "unbalances",
                            "sensors", "stations", "operating", "model"}, path)
-    mat = _get(data, "material", path)
-    _reject_unknown(mat, {"density_kg_m3", "youngs_modulus_pa", "poisson_ratio"}, f"{path}.material")
+    mat = get_field(data, "material", path)
+    reject_unknown_keys(mat, {"density_kg_m3", "youngs_modulus_pa", "poisson_ratio"}, f"{path}.material")
     material = Material(
-        _number(_get(mat, "density_kg_m3", f"{path}.material"), f"{path}.material.density_kg_m3", "kg/m^3",
+        number_field(get_field(mat, "density_kg_m3", f"{path}.material"), f"{path}.material.density_kg_m3", "kg/m^3",
                 low=0.0, low_open=True),
-        _number(_get(mat, "youngs_modulus_pa", f"{path}.material"), f"{path}.material.youngs_modulus_pa", "Pa",
+        number_field(get_field(mat, "youngs_modulus_pa", f"{path}.material"), f"{path}.material.youngs_modulus_pa", "Pa",
                 low=0.0, low_open=True),
-        _number(_get(mat, "poisson_ratio", f"{path}.material"), f"{path}.material.poisson_ratio", "-",
+        number_field(get_field(mat, "poisson_ratio", f"{path}.material"), f"{path}.material.poisson_ratio", "-",
                 low=-0.99, high=0.5))
     sections = []
     for i, item in enumerate(_list(data, "shaft", path)):
         ip = f"{path}.shaft[{i}]"
-        _reject_unknown(item, {"length_m", "outer_diameter_m", "inner_diameter_m"}, ip)
-        od = _number(_get(item, "outer_diameter_m", ip), f"{ip}.outer_diameter_m", "m", low=0.0, low_open=True)
-        idm = _number(item.get("inner_diameter_m", 0.0), f"{ip}.inner_diameter_m", "m", low=0.0)
+        reject_unknown_keys(item, {"length_m", "outer_diameter_m", "inner_diameter_m"}, ip)
+        od = number_field(get_field(item, "outer_diameter_m", ip), f"{ip}.outer_diameter_m", "m", low=0.0, low_open=True)
+        idm = number_field(item.get("inner_diameter_m", 0.0), f"{ip}.inner_diameter_m", "m", low=0.0)
         if idm >= od:
             raise ConfigError(f"{ip}.inner_diameter_m: must be < outer_diameter_m ({od:g} m), got {idm:g}")
-        sections.append(ShaftSection(_number(_get(item, "length_m", ip), f"{ip}.length_m", "m", low=0.0,
+        sections.append(ShaftSection(number_field(get_field(item, "length_m", ip), f"{ip}.length_m", "m", low=0.0,
                                              low_open=True), od, idm))
     if not sections:
         raise ConfigError(f"{path}.shaft: needs at least one section")
@@ -245,11 +245,11 @@ def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDes
     for i, item in enumerate(_list(data, "pedestals", path)):
         ip = f"{path}.pedestals[{i}]"
         allowed = {f for f in Pedestal.__dataclass_fields__}
-        _reject_unknown(item, allowed, ip)
-        kw: dict[str, Any] = {"name": str(_get(item, "name", ip))}
+        reject_unknown_keys(item, allowed, ip)
+        kw: dict[str, Any] = {"name": str(get_field(item, "name", ip))}
         for f in allowed - {"name"}:
             if f in item or f in {"mass_kg", "kxx_N_per_m", "kyy_N_per_m"}:
-                kw[f] = _number(_get(item, f, ip), f"{ip}.{f}", "SI", low=None if f == "axial_position_m" else 0.0)
+                kw[f] = number_field(get_field(item, f, ip), f"{ip}.{f}", "SI", low=None if f == "axial_position_m" else 0.0)
         if kw["mass_kg"] <= 0:
             raise ConfigError(f"{ip}.mass_kg: must be > 0 kg")
         pedestals.append(Pedestal(**kw))
@@ -260,18 +260,18 @@ def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDes
     disks = []
     for i, item in enumerate(_list(data, "disks", path)):
         ip = f"{path}.disks[{i}]"
-        _reject_unknown(item, {"name", "station_axial_m", "mass_kg", "polar_inertia_kg_m2",
+        reject_unknown_keys(item, {"name", "station_axial_m", "mass_kg", "polar_inertia_kg_m2",
                                "transverse_inertia_kg_m2"}, ip)
         disks.append(Disk(str(item.get("name", f"disk{i + 1}")), _station(item, ip, length),
-                          *(_number(_get(item, f, ip), f"{ip}.{f}", "SI", low=0.0)
+                          *(number_field(get_field(item, f, ip), f"{ip}.{f}", "SI", low=0.0)
                             for f in ("mass_kg", "polar_inertia_kg_m2", "transverse_inertia_kg_m2"))))
     bearings = []
     coef = ("kxx_N_per_m", "kxy_N_per_m", "kyx_N_per_m", "kyy_N_per_m",
             "cxx_N_s_per_m", "cxy_N_s_per_m", "cyx_N_s_per_m", "cyy_N_s_per_m")
     for i, item in enumerate(_list(data, "bearings", path)):
         ip = f"{path}.bearings[{i}]"
-        _reject_unknown(item, {"name", "station_axial_m", "pedestal", *coef}, ip)
-        values = [_number(item.get(f, 0.0), f"{ip}.{f}", "SI") for f in coef]
+        reject_unknown_keys(item, {"name", "station_axial_m", "pedestal", *coef}, ip)
+        values = [number_field(item.get(f, 0.0), f"{ip}.{f}", "SI") for f in coef]
         for f in ("kxx_N_per_m", "kyy_N_per_m"):
             if f not in item:
                 raise ConfigError(f"{ip}.{f}: missing required field")
@@ -283,26 +283,26 @@ def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDes
     unbalances = []
     for i, item in enumerate(_list(data, "unbalances", path)):
         ip = f"{path}.unbalances[{i}]"
-        _reject_unknown(item, {"station_axial_m", "mass_kg", "radius_m", "phase_deg"}, ip)
+        reject_unknown_keys(item, {"station_axial_m", "mass_kg", "radius_m", "phase_deg"}, ip)
         unbalances.append(Unbalance(
-            _station(item, ip, length), _number(_get(item, "mass_kg", ip), f"{ip}.mass_kg", "kg", low=0.0),
-            _number(_get(item, "radius_m", ip), f"{ip}.radius_m", "m", low=0.0),
-            math.radians(_number(item.get("phase_deg", 0.0), f"{ip}.phase_deg", "deg", low=-360, high=360))))
+            _station(item, ip, length), number_field(get_field(item, "mass_kg", ip), f"{ip}.mass_kg", "kg", low=0.0),
+            number_field(get_field(item, "radius_m", ip), f"{ip}.radius_m", "m", low=0.0),
+            math.radians(number_field(item.get("phase_deg", 0.0), f"{ip}.phase_deg", "deg", low=-360, high=360))))
 
     sensors = []
     for i, item in enumerate(_list(data, "sensors", path)):
         ip = f"{path}.sensors[{i}]"
-        _reject_unknown(item, {"name", "kind", "station_axial_m", "directions", "noise_std_m", "noise_std_m_s2",
+        reject_unknown_keys(item, {"name", "kind", "station_axial_m", "directions", "noise_std_m", "noise_std_m_s2",
                                "pedestal"}, ip)
-        kind = str(_get(item, "kind", ip))
+        kind = str(get_field(item, "kind", ip))
         if kind not in ("probe", "accelerometer"):
             raise ConfigError(f"{ip}.kind: must be 'probe' or 'accelerometer', got {kind!r}")
         noise_key = "noise_std_m" if kind == "probe" else "noise_std_m_s2"
         directions = tuple(str(d) for d in item.get("directions", ["x", "y"]))
         if not directions or any(d not in ("x", "y") for d in directions) or len(set(directions)) != len(directions):
             raise ConfigError(f"{ip}.directions: a list of distinct 'x' and 'y', got {directions!r}")
-        sensors.append(Sensor(str(_get(item, "name", ip)), kind, _station(item, ip, length), directions,
-                              _number(_get(item, noise_key, ip), f"{ip}.{noise_key}", "SI", low=0.0, low_open=True),
+        sensors.append(Sensor(str(get_field(item, "name", ip)), kind, _station(item, ip, length), directions,
+                              number_field(get_field(item, noise_key, ip), f"{ip}.{noise_key}", "SI", low=0.0, low_open=True),
                               _opt_name(item, "pedestal", ip, ped_names)))
     names = [s.name for s in sensors]
     if len(set(names)) != len(names):
@@ -311,27 +311,27 @@ def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDes
     stations = []
     for i, item in enumerate(_list(data, "stations", path)):
         ip = f"{path}.stations[{i}]"
-        _reject_unknown(item, {"name", "station_axial_m"}, ip)
-        stations.append(Station(str(_get(item, "name", ip)), _station(item, ip, length)))
+        reject_unknown_keys(item, {"name", "station_axial_m"}, ip)
+        stations.append(Station(str(get_field(item, "name", ip)), _station(item, ip, length)))
 
-    op = _get(data, "operating", path)
-    _reject_unknown(op, {"speed_rpm", "sample_rate_hz"}, f"{path}.operating")
-    speed = _number(_get(op, "speed_rpm", f"{path}.operating"), f"{path}.operating.speed_rpm", "rpm", low=0.0)
-    rate = _number(_get(op, "sample_rate_hz", f"{path}.operating"), f"{path}.operating.sample_rate_hz", "Hz",
+    op = get_field(data, "operating", path)
+    reject_unknown_keys(op, {"speed_rpm", "sample_rate_hz"}, f"{path}.operating")
+    speed = number_field(get_field(op, "speed_rpm", f"{path}.operating"), f"{path}.operating.speed_rpm", "rpm", low=0.0)
+    rate = number_field(get_field(op, "sample_rate_hz", f"{path}.operating"), f"{path}.operating.sample_rate_hz", "Hz",
                    low=1.0, high=1e7)
     mo = data.get("model", {}) or {}
-    _reject_unknown(mo, set(ModelOptions.__dataclass_fields__), f"{path}.model")
+    reject_unknown_keys(mo, set(ModelOptions.__dataclass_fields__), f"{path}.model")
     n_modes = mo.get("n_modes", ModelOptions.n_modes)
     if isinstance(n_modes, bool) or not isinstance(n_modes, int) or n_modes < 0:
         raise ConfigError(f"{path}.model.n_modes: must be an integer >= 0 (0: keep all), got {n_modes!r}")
     options = ModelOptions(
         n_modes=n_modes,
-        max_element_length_m=_number(mo.get("max_element_length_m", ModelOptions.max_element_length_m),
+        max_element_length_m=number_field(mo.get("max_element_length_m", ModelOptions.max_element_length_m),
                                      f"{path}.model.max_element_length_m", "m", low=0.0, low_open=True),
-        shaft_damping_stiffness_proportional_s=_number(
+        shaft_damping_stiffness_proportional_s=number_field(
             mo.get("shaft_damping_stiffness_proportional_s", 0.0),
             f"{path}.model.shaft_damping_stiffness_proportional_s", "s", low=0.0),
-        process_noise_force_N_sqrt_s=_number(
+        process_noise_force_N_sqrt_s=number_field(
             mo.get("process_noise_force_N_sqrt_s", ModelOptions.process_noise_force_N_sqrt_s),
             f"{path}.model.process_noise_force_N_sqrt_s", "N*sqrt(s)", low=0.0))
     return RotorDescription(str(data.get("name", "unnamed rotor")), material, tuple(sections), tuple(disks),
@@ -347,7 +347,7 @@ def load_rotor_description(path: str | Path) -> RotorDescription:
     data = load_yaml_file(p, "rotor file")  # size, UTF-8, duplicate-key and alias limits
     if not isinstance(data, Mapping) or "rotor" not in data:
         raise ConfigError(f"rotor file {p}: expected a mapping with a top-level 'rotor' section")
-    _reject_unknown(data, {"rotor"}, "(top level)")
+    reject_unknown_keys(data, {"rotor"}, "(top level)")
     try:
         return rotor_from_mapping(data["rotor"])
     except ConfigError as exc:

@@ -169,7 +169,7 @@ def test_hidden_effects_validation_names_the_field():
 
 def test_exact_delay_matches_a_shifted_sine():
     """The timing-skew model delays by Hermite interpolation: exact to ~1e-4 for a 333 Hz sine at 20 kHz."""
-    from rotor_estimator.diagnosis.effects import delayed
+    from rotor_estimator.diagnosis.effects.timing_skew import delayed
 
     h, w = 50e-6, 2 * np.pi * 333.0
     t = np.arange(2000) * h

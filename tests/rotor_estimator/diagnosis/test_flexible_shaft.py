@@ -11,7 +11,7 @@ import pytest
 from rotor_estimator.core.config import Imbalance, load_rig_file
 from rotor_estimator.diagnosis.context import build_context
 from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
-from rotor_estimator.diagnosis.flexible_shaft import (DECOUPLED_OFFSET, FlexibleShaft, decoupled_column,
+from rotor_estimator.diagnosis.effects.flexible_shaft import (DECOUPLED_OFFSET, FlexibleShaft, decoupled_column,
                                                       equivalent_beam, flexible_response, plane_matrices,
                                                       reduce_shaft, rig_stations, shaft_model,
                                                       VARIANT_SWITCH)

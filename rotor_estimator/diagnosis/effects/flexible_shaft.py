@@ -45,7 +45,7 @@ an offset re-simulated at the coefficients being fitted.
 
 A second, *decoupled* variant shares the effect (:class:`FlexibleShaft`): one pinned-pinned
 mode between the bearings, ``q'' + 2 zeta w q' + w^2 q = sum_i phi(s_i) f_i / m_b``,
-``y += phi(s_p) q`` (the previous ``ShaftBending`` and the generator of :mod:`.effect_sim`),
+``y += phi(s_p) q`` (the form of the own blind generator, :mod:`rotor_estimator.bench.effect_sim`),
 selected by the range of ``nl[0]``, so the multi-start fit picks whichever has the lower cost.
 It has one linear parameter ``1 / m_b`` (zero column in the coupled variant), so the effect
 counts 3 parameters in either variant.
@@ -64,7 +64,7 @@ from rotor_estimator.core.flexible.fe_rotor import hermite_shape, subdivide
 from rotor_estimator.core.model import RotorMatrices, damping_matrix, point_force_weights, rotor_matrices, stiffness_matrix
 from rotor_estimator.diagnosis import models
 from rotor_estimator.diagnosis.context import FitContext
-from rotor_estimator.diagnosis.effects import Effect, rotating_mass_force
+from rotor_estimator.diagnosis.effects.base import Effect, rotating_mass_force
 from rotor_estimator.diagnosis.linsim import simulate_linear
 
 #: Free-free bending modes kept per plane (plus one residual-flexibility shape per bearing).
@@ -342,8 +342,8 @@ def decoupled_column(ctx: FitContext, frequency_hz: float, damping_ratio: float)
     """Probe output (N, 4) of one pinned-pinned bending mode of unit modal mass, decoupled from Eq. 2.
 
     ``q'' + 2 zeta w q' + w^2 q = sum_i phi(s_i) f_i``, ``y = phi(s_probe) q``, ``phi`` the first
-    pinned-pinned shape between the bearings (:func:`.models.mode_shape`): the variant of the
-    effect that matches :class:`.effects.ShaftBending` and the decoupled generator of :mod:`.effect_sim`.
+    pinned-pinned shape between the bearings (:func:`rotor_estimator.diagnosis.models.mode_shape`): the
+    variant of the effect that matches the decoupled generator of :mod:`rotor_estimator.bench.effect_sim`.
     """
     rig = ctx.rig
     smooth, step = point_forces(ctx)

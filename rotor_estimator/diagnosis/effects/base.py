@@ -1,0 +1,103 @@
+"""The library of candidate unmodelled effects: small, physical augmentations of Eq. 2.
+
+Each effect is a frozen dataclass with its physical parameters (SI, unit in the name)
+and two functions used by :mod:`.fitting`:
+
+* ``basis(ctx, nl)`` -> ``(offset (N,4) or None, columns (N,4,k))``: the effect's
+  contribution to the probe output about the nominal fit, for nonlinear parameters
+  ``nl``; the columns' gains are the linear parameters.
+* ``physical(nl, lin)`` -> the named physical parameters.
+
+Measurement-side effects act on the probe signals, ``y = g(y_true)``; force-side
+effects add a generalized force ``F_e`` to Eq. 5 and enter through the nominal model's
+response (linear in their amplitudes); structural effects (pedestal, bending mode)
+change the state-space model (:mod:`.models`) and are re-simulated.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from rotor_estimator.diagnosis import models
+from rotor_estimator.diagnosis.context import FitContext
+
+CHANNELS = ("xp1", "yp1", "xp2", "yp2")
+UNIT_UNBALANCE_KG_M = 1e-6   # 1 g*mm
+UNIT_CUBIC_N_PER_M3 = 1e12
+UNIT_RUNOUT_M = 1e-6
+UNIT_SKEW_S = 1e-6
+
+
+@dataclass(frozen=True)
+class Effect:
+    """Base of the candidate effects: ``name``, a one-line ``description`` and parameter names."""
+
+    name: ClassVar[str] = "effect"
+    description: ClassVar[str] = ""
+    nl_names: ClassVar[tuple[str, ...]] = ()
+
+    def lin_names(self, ctx: FitContext) -> tuple[str, ...]:
+        raise NotImplementedError
+
+    def n_params(self, ctx: FitContext) -> int:
+        return len(self.nl_names) + len(self.lin_names(ctx))
+
+    def nl_grid(self, ctx: FitContext) -> list[np.ndarray]:
+        """Starting points of the nonlinear search (empty for a linear effect)."""
+        return []
+
+    def nl_bounds(self, ctx: FitContext) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(0), np.zeros(0)
+
+    def refine_starts(self, ctx: FitContext) -> list[np.ndarray]:
+        """Extra nonlinear starting points of the joint refit with the coefficients (structural effects)."""
+        return []
+
+    def basis(self, ctx: FitContext, nl: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+        raise NotImplementedError
+
+    def physical(self, nl: np.ndarray, lin: np.ndarray) -> dict[str, float]:
+        """Physical parameter values (SI) from the fitted nonlinear and linear parameters."""
+        return {}
+
+    #: True for an effect that acts on the whole probe signal (a delay): in a pair it also acts
+    #: on the other effect's contribution (:meth:`transform`).
+    transforms_signal: ClassVar[bool] = False
+
+    def transform(self, ctx: FitContext, nl: np.ndarray, signal_m: np.ndarray) -> np.ndarray:
+        """The effect applied to another contribution ``signal_m`` ((N,4) or (N,4,k)); identity by default."""
+        return signal_m
+
+    #: True for a force effect: its contribution is the response to a force (``ctx.response``), so in a
+    #: pair with a structural effect it is the response through that effect's model (:meth:`carrier`).
+    forcing: ClassVar[bool] = False
+
+    def carrier(self, ctx: FitContext, nl: np.ndarray) -> FitContext | None:
+        """``ctx`` with its force response sent through this effect's structural model; ``None`` if it has none."""
+        return None
+
+
+def rotating_mass_force(ctx: FitContext, phase_rad: float, moment_kg_m: float,
+                        harmonic: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Point force ``(fx, fy)`` (N each) of a rotating mass ``m r`` at phase ``phase_rad`` from the
+    keyphasor mark: ``m r (w^2 cos a + w' sin a, w^2 sin a - w' cos a)`` (Eq. 5 before the lever rule)."""
+    a = harmonic * ctx.shaft.angle_rad + phase_rad
+    w, acc = ctx.shaft.speed_rad_s, ctx.shaft.accel_rad_s2
+    return moment_kg_m * (w * w * np.cos(a) + acc * np.sin(a)), moment_kg_m * (w * w * np.sin(a) - acc * np.cos(a))
+
+
+def unbalance_force(ctx: FitContext, axial_position_m: float, phase_rad: float, moment_kg_m: float,
+                     harmonic: int = 1) -> np.ndarray:
+    """Generalized force of a rotating mass ``m r`` at ``axial_position_m`` (Eq. 5, single plane)."""
+    fx, fy = rotating_mass_force(ctx, phase_rad, moment_kg_m, harmonic)
+    return models.point_generalized_force(ctx.rig, axial_position_m, fx, fy)
+
+
+def unbalance_planes(ctx: FitContext) -> tuple[float, float]:
+    """Correction planes: the rig's two imbalance planes, else the bearing stations."""
+    planes = sorted({u.axial_position_m for u in ctx.rig.imbalances})
+    if len(planes) >= 2:
+        return planes[0], planes[-1]
+    return ctx.rig.bearing1_position_m, ctx.rig.bearing2_position_m

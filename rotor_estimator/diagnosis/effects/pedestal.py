@@ -1,0 +1,58 @@
+"""Pedestal flexibility: the bearing housings on a mass-spring-damper foundation."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from rotor_estimator.diagnosis import models
+from rotor_estimator.diagnosis.effects.base import Effect
+
+
+@dataclass(frozen=True)
+class PedestalFlexibility(Effect):
+    """Bearing housings on a mass-spring-damper foundation (isotropic, both bearings)."""
+
+    name: ClassVar[str] = "pedestal"
+    description: ClassVar[str] = "foundation/pedestal flexibility: housing mass, spring and damper under each bearing"
+    nl_names: ClassVar[tuple[str, ...]] = ("log10_frequency_hz", "log10_damping_ratio", "log10_mass_kg")
+
+    def lin_names(self, ctx):
+        return ()
+
+    def nl_grid(self, ctx):
+        return [np.array([np.log10(f), np.log10(0.05), np.log10(m)])
+                for f in (50.0, 100.0, 200.0, 400.0, 800.0, 1600.0) for m in (0.5, 2.0, 8.0)]
+
+    def nl_bounds(self, ctx):
+        fmax = 0.45 * ctx.sample_rate_hz
+        return np.array([np.log10(20.0), -3.0, -1.5]), np.array([np.log10(fmax), 0.0, 2.0])
+
+    def refine_starts(self, ctx):
+        return [np.array([np.log10(f), np.log10(0.05), np.log10(2.0)]) for f in (60.0, 120.0, 250.0, 500.0)]
+
+    @staticmethod
+    def housing(nl: np.ndarray) -> tuple[float, float, float]:
+        f, zeta, m = 10 ** nl[0], 10 ** nl[1], 10 ** nl[2]
+        k = m * (2 * np.pi * f) ** 2
+        return m, k, 2 * zeta * np.sqrt(k * m)
+
+    def basis(self, ctx, nl):
+        y = self.carrier(ctx, nl).response(ctx.known_smooth_n, ctx.known_step_n)
+        return y - ctx.y_nom_m, np.zeros((ctx.t_s.size, 4, 0))
+
+    def carrier(self, ctx, nl):
+        """The context whose forces (a partner's unbalance, misalignment) act on the shaft on its pedestals."""
+        from dataclasses import replace
+
+        m, k, c = self.housing(nl)
+        mats, r = ctx.mats, ctx.coefficients
+        model = (lambda w: models.pedestal_state_matrix(mats, r, w, m, k, c), models.pedestal_input(mats),
+                 models.pedestal_output(mats))
+        return replace(ctx, response_model=model, _cache={})
+
+    def physical(self, nl, lin):
+        m, k, c = self.housing(nl)
+        return {"pedestal_frequency_hz": float(10 ** nl[0]), "pedestal_damping_ratio": float(10 ** nl[1]),
+                "pedestal_mass_kg": m, "pedestal_stiffness_N_per_m": k, "pedestal_damping_N_s_per_m": c}

@@ -1,0 +1,50 @@
+"""Probe calibration: gain and mounting-angle errors of each probe."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from rotor_estimator.diagnosis.effects.base import CHANNELS, Effect
+
+
+@dataclass(frozen=True)
+class ProbeGainOrientation(Effect):
+    """Sensitivity and mounting-angle error of each probe: a general 2x2 map per probe plane.
+
+    A probe at angle error ``d_i`` with gain error ``g_i`` reads
+    ``(1 + g_i) (x cos d_i + y sin d_i)`` (x probe) or ``(1 + g_i) (-x sin d_i + y cos d_i)``
+    (y probe): each plane's pair is the exact linear map ``[x', y'] = A_p [x, y]`` with
+    4 free entries (per-probe gain and angle, so non-orthogonal probes too), fitted as
+    ``A_p - I`` on the nominal output.
+    """
+
+    name: ClassVar[str] = "probe_gain_orientation"
+    description: ClassVar[str] = "probe gain and mounting-angle error per probe (2x2 map per probe plane)"
+
+    def lin_names(self, ctx):
+        return tuple(f"{plane}_{entry}" for plane in ("p1", "p2")
+                     for entry in ("axx_minus_1", "axy", "ayx", "ayy_minus_1"))
+
+    def basis(self, ctx, nl):
+        y = ctx.y_nom_m
+        cols = np.zeros((y.shape[0], 4, 8))
+        for p in range(2):
+            x_c, y_c = 2 * p, 2 * p + 1
+            cols[:, x_c, 4 * p] = y[:, x_c]
+            cols[:, x_c, 4 * p + 1] = y[:, y_c]
+            cols[:, y_c, 4 * p + 2] = y[:, x_c]
+            cols[:, y_c, 4 * p + 3] = y[:, y_c]
+        return None, cols
+
+    def physical(self, nl, lin):
+        out = {}
+        for p in range(2):
+            axx, axy, ayx, ayy = 1 + lin[4 * p], lin[4 * p + 1], lin[4 * p + 2], 1 + lin[4 * p + 3]
+            x_ch, y_ch = CHANNELS[2 * p], CHANNELS[2 * p + 1]
+            out[f"gain_error_{x_ch}"] = float(np.hypot(axx, axy) - 1)
+            out[f"gain_error_{y_ch}"] = float(np.hypot(ayx, ayy) - 1)
+            out[f"angle_error_{x_ch}_deg"] = float(np.degrees(np.arctan2(axy, axx)))
+            out[f"angle_error_{y_ch}_deg"] = float(np.degrees(np.arctan2(-ayx, ayy)))
+        return out

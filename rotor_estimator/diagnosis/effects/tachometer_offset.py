@@ -1,0 +1,37 @@
+"""Keyphasor angular offset: the once-per-revolution mark is not where the model puts it."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from rotor_estimator.core.model import imbalance_force
+from rotor_estimator.diagnosis.effects.base import Effect
+
+
+@dataclass(frozen=True)
+class TachometerOffset(Effect):
+    """Keyphasor mark off by an angle: the known imbalance is applied at ``angle + offset``."""
+
+    forcing: ClassVar[bool] = True
+    name: ClassVar[str] = "tach_offset"
+    description: ClassVar[str] = "keyphasor angular offset (imbalance phase reference rotated)"
+    nl_names: ClassVar[tuple[str, ...]] = ("offset_rad",)
+
+    def lin_names(self, ctx):
+        return ()
+
+    def nl_grid(self, ctx):
+        return [np.array([v]) for v in (-0.3, -0.1, 0.1, 0.3)]
+
+    def nl_bounds(self, ctx):
+        return np.array([-np.pi / 2]), np.array([np.pi / 2])
+
+    def basis(self, ctx, nl):
+        shifted = imbalance_force(ctx.mats, ctx.shaft.angle_rad + nl[0], ctx.shaft.speed_rad_s,
+                                  ctx.shaft.accel_rad_s2)
+        return ctx.response(shifted - ctx.known_smooth_n), np.zeros((ctx.t_s.size, 4, 0))
+
+    def physical(self, nl, lin):
+        return {"offset_deg": float(np.degrees(nl[0]))}
