@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,6 @@ import numpy as np
 from rotor_estimator.core.config import RigFile, load_rig_file
 from rotor_estimator.core.errors import InputError
 from rotor_estimator.core.recording import RigRecording
-from rotor_estimator.core.simulator import Impact
 from rotor_estimator.bench.cases import WARMUP_S, BlindCase, nominal_unabsorbed_rms, random_impacts  # noqa: F401
 from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
 

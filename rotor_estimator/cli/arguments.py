@@ -1,4 +1,5 @@
-"""argparse ``type=`` callables that refuse out-of-range numbers with a message naming the range.
+"""What the commands share: argparse ``type=`` callables that refuse out-of-range numbers with a message
+naming the range, the bag argument, and the progress bar.
 
 argparse turns :class:`argparse.ArgumentTypeError` into ``<prog>: error: argument --seed: ...``
 and exit status 2, so ``--seed -1`` or ``--passes 0`` never reach the numerical code (where they
@@ -7,7 +8,8 @@ used to end in a numpy traceback or a silent zero-pass run).
 from __future__ import annotations
 
 import argparse
-from typing import Callable
+import sys
+from typing import Any, Callable
 
 #: Seeds are non-negative (numpy's SeedSequence refuses negatives); 32 bits, as numpy's legacy seeding.
 SEED_MAX = 2**32 - 1
@@ -58,3 +60,10 @@ def bag_from_args(args: argparse.Namespace) -> str:
         raise InputError("give the input bag once, as BAG or --bag BAG" if given else
                          "no input bag: give BAG or --bag BAG")
     return str(given[0])
+
+
+def progress_bar(total: int, desc: str, enabled: bool = True) -> Any:
+    """A tqdm progress bar on stderr (``enabled=False``, ``--no-progress`` or ``TQDM_DISABLE``: silent)."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, file=sys.stderr, disable=not enabled, leave=False)

@@ -58,20 +58,10 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
-    import sys
-    import warnings
-
-    from rotor_estimator.bench.diagnosis import format_score, run
-
-    warnings.simplefilter("ignore")
-    s = run(args.cases, args.seed, args.out, jobs=args.jobs, use_ross=not args.no_ross,
-            progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True))
-    print(json.dumps({k: v for k, v in s.items() if k != "rows"}, indent=1) if args.json else format_score(s))
-    return 0
 
 
-def add_parsers(subparsers) -> None:
+def add_parser(subparsers) -> None:
+    """The ``diagnose`` subcommand."""
     p = subparsers.add_parser("diagnose", help="diagnose the sim-to-real gap of a recording (where, which effect, "
                                                "how far it shrinks)")
     add_bag_argument(p, "input bag (rosbag2 MCAP, e.g. from `rotor-estimator import`) or .npz")
@@ -83,12 +73,3 @@ def add_parsers(subparsers) -> None:
     p.set_defaults(func=cmd_diagnose)
 
 
-def add_bench_parsers(bench_subparsers) -> None:
-    b = bench_subparsers.add_parser("diagnosis", help="blind withheld-effect benchmark of `diagnose`")
-    b.add_argument("--cases", type=int, default=36, help="blind cases to draw (default 36)")
-    b.add_argument("--seed", type=cli_types.seed, default=2024)
-    b.add_argument("--out", default=None, help="keep the blind set, labels and results here")
-    b.add_argument("--jobs", type=int, default=2, help="cases diagnosed at once, one process each (default 2)")
-    b.add_argument("--no-ross", action="store_true", help="leave out the ROSS flexible-shaft cases")
-    b.add_argument("--json", action="store_true")
-    b.set_defaults(func=cmd_bench_diagnosis)

@@ -95,7 +95,8 @@ def cmd_import(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parsers(subparsers: Any) -> None:
+def add_parser(subparsers: Any) -> None:
+    """The ``import`` subcommand."""
     p = subparsers.add_parser(
         "import", help="convert a DAQ recording (CSV, NPZ, HDF5) to an input bag",
         description="Read probe displacements, a keyphasor and optional hammer force from a DAQ export, check "
@@ -133,4 +134,4 @@ def add_parsers(subparsers: Any) -> None:
     p.set_defaults(func=cmd_import)
 
 
-__all__ = ["add_parsers", "cmd_import"]
+__all__ = ["add_parser", "cmd_import"]

@@ -15,7 +15,6 @@ import argparse
 import json
 import math
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -25,20 +24,17 @@ from rotor_estimator.core.errors import InputError, RotorEstimatorError
 from rotor_estimator.cli import arguments as cli_types
 from rotor_estimator.io.safe_write import save_npz
 from rotor_estimator.core.flexible.description import load_rotor_description
-from rotor_estimator.core.flexible.state_space import (FlexibleStateSpace, build_state_space, periodic_steady_state, simulate,
+from rotor_estimator.core.flexible.state_space import (FlexibleStateSpace, build_state_space, simulate,
                                    station_outputs, unbalance_inputs)
-from rotor_estimator.core.linear_filters import KalmanFilter, LinearGaussianModel, UnscentedKalmanFilter
 from rotor_estimator.virtual_sensing.estimator import (FILTERS, VirtualSensingConfig, estimate_stations, leave_one_station_out,
                               resolve_stations, shaft_angle_from_pulses)
 
-__all__ = ["add_virtual_sensing_parser", "add_bench_parser", "run_virtual_sensing", "run_bench",
-           "bench_virtual_sensing", "load_npz_channels", "load_bag_channels", "pulses_from_inputs"]
+__all__ = ["add_parser", "run_virtual_sensing", "load_npz_channels", "load_bag_channels", "pulses_from_inputs"]
 
 DEFAULT_ROTOR = "three_probe_rig"
-BENCH_ROTOR = "neisi_2022_like"
 
 
-def add_virtual_sensing_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "virtual-sensing", help="estimate unmeasured stations; leave-one-station-out validation",
         description="Hide each sensor in turn, estimate it from the others and report the error, the "
@@ -80,21 +76,6 @@ def add_virtual_sensing_parser(subparsers: Any) -> argparse.ArgumentParser:
     return p
 
 
-def add_bench_parser(bench_subparsers: Any) -> argparse.ArgumentParser:
-    p = bench_subparsers.add_parser(
-        "virtual-sensing", help="UKF vs Kalman filter at the paper's scale (150 states, 8 observations)",
-        description="Time a UKF with 150 states and 8 observations over 8192 samples (Neisi et al.: more "
-                    "than eight hours), the exact Kalman filter on the same model, their agreement, and "
-                    "the leave-one-station-out coverage.")
-    p.add_argument("--samples", type=cli_types.positive_int, default=8192,
-                   help="samples filtered per run (default 8192)")
-    p.add_argument("--seed", type=cli_types.seed, default=0)
-    p.add_argument("--alpha", type=float, default=0.01, help="UKF alpha (Table 5 of the paper: 0.01)")
-    p.add_argument("--beta", type=float, default=2.0, help="UKF beta (default 2)")
-    p.add_argument("--kappa", type=float, default=0.0, help="UKF kappa (default 0)")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=run_bench)
-    return p
 
 
 # --------------------------------------------------------------------------- data
@@ -329,79 +310,7 @@ def _write_estimates(path: Path, estimates: list, confidence: float) -> None:
 
 
 # --------------------------------------------------------------------------- bench
-def bench_virtual_sensing(samples: int = 8192, seed: int = 0, alpha: float = 0.01, beta: float = 2.0,
-                          kappa: float = 0.0) -> dict[str, Any]:
-    """Paper-scale run: 75 modes (150 states), the 8 housing-accelerometer channels, UKF
-    and KF timed on the same simulated data; then leave-one-station-out (KF) hiding each
-    probe plane, with all other channels (probes and accelerometers) used together."""
-    rotor = load_rotor_description(BENCH_ROTOR)
-    ss = build_state_space(rotor, n_modes=75)
-    sim = simulate(ss, samples, seed=seed)
-    acc = [j for j, unit in enumerate(ss.channel_units) if unit == "m/s^2"]
-    m = ss.model
-    m8 = LinearGaussianModel(m.F, m.Q, m.H[acc], m.R[np.ix_(acc, acc)], m.B, m.D[acc])
-    x0 = periodic_steady_state(ss)
-    t0 = time.perf_counter()
-    ukf = UnscentedKalmanFilter.from_linear(m8, x0, ss.P0, alpha, beta, kappa).run(sim.z[:, acc], sim.u)
-    t_ukf = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    kf = KalmanFilter(m8, x0, ss.P0).run(sim.z[:, acc], sim.u)
-    t_kf = time.perf_counter() - t0
-    probes = [s.name for s in rotor.sensors if s.kind == "probe"]
-    report = leave_one_station_out(ss, sim.z, sim.u, VirtualSensingConfig(filter="kf"), hidden=probes,
-                                   x_true=sim.x)
-    rows = [r for r in report.rows if r.unit == "m"]
-    return {
-        "rotor": rotor.name, "n_states": ss.n_states, "n_observations": len(acc), "n_samples": samples,
-        "ukf_alpha": alpha, "ukf_beta": beta, "ukf_kappa": kappa,
-        "ukf_150_seconds": t_ukf, "ukf_ms_per_sample": 1e3 * t_ukf / samples,
-        "kf_150_seconds": t_kf, "kf_ms_per_sample": 1e3 * t_kf / samples,
-        "max_mean_difference_in_kf_sigmas": float(np.max(np.abs(ukf.x - kf.x) / np.sqrt(kf.P_diag))),
-        "max_variance_relative_difference": float(np.max(np.abs(ukf.P_diag - kf.P_diag) / kf.P_diag)),
-        "coverage_95": float(np.mean([r.coverage_measured for r in rows])),
-        "coverage_95_true_state": float(np.mean([r.coverage_true for r in rows])),
-        "interval_width_m": float(np.mean([r.mean_interval_width for r in rows])),
-        "hidden_signal_rms_m": float(np.mean([r.signal_rms for r in rows])),
-        "leave_one_station_out": report.to_dict(),
-        "_table": report.format_table(),
-    }
 
 
-def run_bench(args: argparse.Namespace) -> int:
-    try:
-        res = bench_virtual_sensing(args.samples, args.seed, args.alpha, args.beta, args.kappa)
-    except RotorEstimatorError as exc:
-        print(f"rotor-estimator: error: {exc}", file=sys.stderr)
-        return 2
-    table = res.pop("_table")
-    if args.json:
-        print(json.dumps(res, indent=2, default=_json_default))
-        return 0
-    n = res["n_samples"]
-    print(f"virtual-sensing bench: {res['rotor']}, {res['n_states']} states, {res['n_observations']} "
-          f"observations, {n} samples")
-    print(f"  UKF (alpha={res['ukf_alpha']:g}, beta={res['ukf_beta']:g}, kappa={res['ukf_kappa']:g}): "
-          f"{res['ukf_150_seconds']:.2f} s ({res['ukf_ms_per_sample']:.3f} ms/sample)")
-    print(f"  Kalman filter: {res['kf_150_seconds']:.2f} s ({res['kf_ms_per_sample']:.3f} ms/sample)")
-    print(f"  UKF vs KF: max mean difference {res['max_mean_difference_in_kf_sigmas']:.2e} KF sigmas, "
-          f"max variance difference {100 * res['max_variance_relative_difference']:.2e} %")
-    print(f"  leave-one-station-out (probes hidden): coverage {res['coverage_95']:.3f} of 95% intervals "
-          f"(true state {res['coverage_95_true_state']:.3f}), mean width {res['interval_width_m']:.3e} m "
-          f"(hidden signal rms {res['hidden_signal_rms_m']:.3e} m)")
-    print(table)
-    return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Stand-alone entry: ``virtual-sensing ...`` or ``bench virtual-sensing ...``."""
-    parser = argparse.ArgumentParser(prog="rotor-estimator")
-    sub = parser.add_subparsers(dest="command", required=True)
-    add_virtual_sensing_parser(sub)
-    bench = sub.add_parser("bench", help="benchmarks").add_subparsers(dest="bench_command", required=True)
-    add_bench_parser(bench)
-    args = parser.parse_args(argv)
-    return int(args.func(args))
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -66,13 +66,13 @@ def test_crlb_scales_with_noise_and_unknown_imbalance_widens_it(seed_rig, true8)
 
 
 def test_plan_command_json(capsys, seed_rig, monkeypatch):
-    from rotor_estimator.cli.commands import identify_cmd
+    from rotor_estimator.cli import plan as plan_cli
     from rotor_estimator.identification import planner
 
     monkeypatch.setattr(planner, "candidate_designs", lambda rig, c, bearings16=False, hammer_force_n=515.0: [
         sweep("cd 0.25 s", 20000, 3000, 0.25)])
     parser = argparse.ArgumentParser()
-    identify_cmd.add_parsers(parser.add_subparsers(dest="command"))
+    plan_cli.add_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["plan", "--target", "5", "--json", "--no-progress"])
     monkeypatch.setattr("rotor_estimator.identification.planner.candidate_designs", planner.candidate_designs)
     assert args.func(args) == 0
@@ -81,11 +81,11 @@ def test_plan_command_json(capsys, seed_rig, monkeypatch):
 
 
 def test_bench_identification_json_keys(capsys):
-    from rotor_estimator.cli.commands import identify_cmd
+    from rotor_estimator.cli import bench as bench_cli
 
     parser = argparse.ArgumentParser()
-    identify_cmd.add_bench_parsers(parser.add_subparsers(dest="bench"))
-    args = parser.parse_args(["identification", "--runs", "2", "--only", "imbalance+impact", "--methods", "ekf",
+    bench_cli.add_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["bench", "identification", "--runs", "2", "--only", "imbalance+impact", "--methods", "ekf",
                               "batch-ml", "--json", "--no-progress"])
     assert args.func(args) == 0
     rows = json.loads(capsys.readouterr().out)

@@ -16,8 +16,8 @@ from rotor_estimator.io.safe_write import output_directory, save_figure, save_np
 
 PACKAGE = Path(__file__).resolve().parents[3] / "rotor_estimator"
 #: The modules that write reports and figures; each must write through safe_write only.
-WRITERS = ["plots.py", "virtual_sensing_plots.py", "diagnosis/report.py", "identification/plots.py",
-           "virtual_sensing_cli.py"]
+WRITERS = ["cli/plots.py", "virtual_sensing/plots.py", "diagnosis/report.py", "identification/plots.py",
+           "cli/virtual_sensing.py", "cli/replay.py"]
 
 
 @pytest.fixture

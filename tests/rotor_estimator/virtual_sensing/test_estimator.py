@@ -12,7 +12,8 @@ import pytest
 from rotor_estimator.core.flexible import build_state_space, load_rotor_description, simulate, station_outputs
 from rotor_estimator.virtual_sensing.estimator import (VirtualSensingConfig, confidence_ellipse, estimate_stations,
                                              leave_one_station_out)
-from rotor_estimator.cli.virtual_sensing import add_bench_parser, add_virtual_sensing_parser
+from rotor_estimator.cli.bench import add_virtual_sensing_bench
+from rotor_estimator.cli.virtual_sensing import add_parser
 
 
 @pytest.fixture(scope="module")
@@ -117,8 +118,8 @@ def test_config_errors_name_the_field():
 def _parser():
     parser = argparse.ArgumentParser(prog="rotor-estimator")
     sub = parser.add_subparsers(dest="command", required=True)
-    add_virtual_sensing_parser(sub)
-    add_bench_parser(sub.add_parser("bench").add_subparsers(dest="bench_command", required=True))
+    add_parser(sub)
+    add_virtual_sensing_bench(sub.add_parser("bench").add_subparsers(dest="bench_command", required=True))
     return parser
 
 

@@ -14,7 +14,7 @@ import msg_adapters as ma
 from rotor_estimator.io.bags import bag_topics, iter_bag_messages
 from rotor_estimator.core.errors import BagError, InputError
 from rotor_estimator.core.flexible import build_state_space, load_rotor_description, simulate
-from rotor_estimator.cli.virtual_sensing import add_virtual_sensing_parser, pulses_from_inputs
+from rotor_estimator.cli.virtual_sensing import add_parser, pulses_from_inputs
 from rotor_estimator.virtual_sensing.inputs import read_sensor_bag, write_sensor_bag
 
 T0_NS = 1_700_000_000_000_000_007
@@ -178,7 +178,7 @@ def wire(factory):
 # --------------------------------------------------------------------------- CLI
 def _run(argv: list[str], capsys) -> tuple[int, str]:
     parser = argparse.ArgumentParser(prog="rotor-estimator")
-    add_virtual_sensing_parser(parser.add_subparsers(dest="command", required=True))
+    add_parser(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(["virtual-sensing", *argv])
     code = args.func(args)
     return code, capsys.readouterr().out

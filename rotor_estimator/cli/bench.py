@@ -1,0 +1,155 @@
+"""``rotor-estimator bench ...``: the benchmarks that print figures (speed, live nodes, diagnosis,
+identification, virtual sensing). Each handler is a thin shell over :mod:`rotor_estimator.bench`."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rotor_estimator.cli import arguments as cli_types
+from rotor_estimator.cli.arguments import progress_bar
+from rotor_estimator.core.errors import RotorEstimatorError
+
+def cmd_bench_speed(args: argparse.Namespace) -> int:
+    from rotor_estimator.bench.speed import format_result, run
+
+    result = run(rig_path=args.rig)
+    print(json.dumps(result, indent=1) if args.json else format_result(result))
+    return 0
+
+
+def cmd_bench_live(args: argparse.Namespace) -> int:
+    try:
+        from rotor_estimator.bench.live_nodes import format_result, run
+    except ImportError as exc:
+        from rotor_estimator.core.errors import RotorEstimatorError
+
+        raise RotorEstimatorError(f"bench live needs rclpy ({exc}); install the 'ros' extra or source ROS 2") from exc
+    result = run(step_s=args.step_s, rates_hz=tuple(args.rates), progress=not args.json)
+    print(json.dumps(result, indent=1) if args.json else format_result(result))
+    return 0
+
+
+def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
+    import sys
+    import warnings
+
+    from rotor_estimator.bench.diagnosis import format_score, run
+
+    warnings.simplefilter("ignore")
+    s = run(args.cases, args.seed, args.out, jobs=args.jobs, use_ross=not args.no_ross,
+            progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True))
+    print(json.dumps({k: v for k, v in s.items() if k != "rows"}, indent=1) if args.json else format_score(s))
+    return 0
+
+
+def cmd_bench_identification(args: argparse.Namespace) -> int:
+    from rotor_estimator.bench.identification import format_results, run, scenarios, to_rows
+    from rotor_estimator.identification.methods import METHODS
+
+    methods = tuple(args.methods) if args.methods else METHODS
+    chosen = [s for s in scenarios() if not args.only or any(o in s.name for o in args.only)]
+    with progress_bar(args.runs * len(chosen), "bench identification", not args.no_progress) as bar:
+        cells = run(args.runs, rig_path=args.rig, methods=methods, jobs=args.jobs, first_seed=args.seed,
+                    only=tuple(args.only or ()), progress=bar.update)
+    print(json.dumps(to_rows(cells), indent=1) if args.json else format_results(cells))
+    return 0
+
+
+def cmd_bench_virtual_sensing(args: argparse.Namespace) -> int:
+    from rotor_estimator.bench.virtual_sensing import bench_virtual_sensing
+
+    try:
+        res = bench_virtual_sensing(args.samples, args.seed, args.alpha, args.beta, args.kappa)
+    except RotorEstimatorError as exc:
+        print(f"rotor-estimator: error: {exc}", file=sys.stderr)
+        return 2
+    table = res.pop("_table")
+    if args.json:
+        print(json.dumps(res, indent=2, default=_json_default))
+        return 0
+    n = res["n_samples"]
+    print(f"virtual-sensing bench: {res['rotor']}, {res['n_states']} states, {res['n_observations']} "
+          f"observations, {n} samples")
+    print(f"  UKF (alpha={res['ukf_alpha']:g}, beta={res['ukf_beta']:g}, kappa={res['ukf_kappa']:g}): "
+          f"{res['ukf_150_seconds']:.2f} s ({res['ukf_ms_per_sample']:.3f} ms/sample)")
+    print(f"  Kalman filter: {res['kf_150_seconds']:.2f} s ({res['kf_ms_per_sample']:.3f} ms/sample)")
+    print(f"  UKF vs KF: max mean difference {res['max_mean_difference_in_kf_sigmas']:.2e} KF sigmas, "
+          f"max variance difference {100 * res['max_variance_relative_difference']:.2e} %")
+    print(f"  leave-one-station-out (probes hidden): coverage {res['coverage_95']:.3f} of 95% intervals "
+          f"(true state {res['coverage_95_true_state']:.3f}), mean width {res['interval_width_m']:.3e} m "
+          f"(hidden signal rms {res['hidden_signal_rms_m']:.3e} m)")
+    print(table)
+    return 0
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    raise TypeError(type(value).__name__)
+
+
+def add_virtual_sensing_bench(bench: Any) -> argparse.ArgumentParser:
+    """``bench virtual-sensing``."""
+    p = bench.add_parser(
+        "virtual-sensing", help="UKF vs Kalman filter at the paper's scale (150 states, 8 observations)",
+        description="Time a UKF with 150 states and 8 observations over 8192 samples (Neisi et al.: more "
+                    "than eight hours), the exact Kalman filter on the same model, their agreement, and "
+                    "the leave-one-station-out coverage.")
+    p.add_argument("--samples", type=cli_types.positive_int, default=8192,
+                   help="samples filtered per run (default 8192)")
+    p.add_argument("--seed", type=cli_types.seed, default=0)
+    p.add_argument("--alpha", type=float, default=0.01, help="UKF alpha (Table 5 of the paper: 0.01)")
+    p.add_argument("--beta", type=float, default=2.0, help="UKF beta (default 2)")
+    p.add_argument("--kappa", type=float, default=0.0, help="UKF kappa (default 0)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_bench_virtual_sensing)
+    return p
+
+
+def add_parser(subparsers: Any) -> None:
+    """The ``bench`` subcommand and its benchmarks."""
+    bench = subparsers.add_parser("bench", help="benchmarks that print figures").add_subparsers(
+        dest="bench", required=True, metavar="BENCH")
+    b = bench.add_parser("speed", help="EKF microseconds per sample vs a filterpy EKF of the same model")
+    b.add_argument("--json", action="store_true")
+    b.add_argument("--rig", type=Path, default=None)
+    b.set_defaults(func=cmd_bench_speed)
+
+    b = bench.add_parser("live", help="live rclpy throughput and latency (publisher + estimator node)")
+    b.add_argument("--json", action="store_true")
+    b.add_argument("--step-s", type=float, default=3.0, help="seconds per rate step (default 3)")
+    b.add_argument("--rates", type=float, nargs="+", default=[5000.0, 10000.0, 20000.0, 40000.0, 80000.0],
+                   help="probe sample rates per plane to try, Hz (200-sample blocks)")
+    b.set_defaults(func=cmd_bench_live)
+
+    b = bench.add_parser("diagnosis", help="blind withheld-effect benchmark of `diagnose`")
+    b.add_argument("--cases", type=int, default=36, help="blind cases to draw (default 36)")
+    b.add_argument("--seed", type=cli_types.seed, default=2024)
+    b.add_argument("--out", default=None, help="keep the blind set, labels and results here")
+    b.add_argument("--jobs", type=int, default=2, help="cases diagnosed at once, one process each (default 2)")
+    b.add_argument("--no-ross", action="store_true", help="leave out the ROSS flexible-shaft cases")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_diagnosis)
+
+    b = bench.add_parser("identification", help="EKF, UKF, EKF+RTS and batch ML against the CRLB on "
+                                                           "the seed cases, coast-downs and the 5-impact test")
+    b.add_argument("--runs", type=int, default=20, help="seeded runs per scenario (default 20)")
+    b.add_argument("--seed", type=cli_types.seed, default=1, help="first noise seed")
+    b.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    b.add_argument("--methods", nargs="+", default=None, help="subset of: ekf ukf ekf+rts batch-ml")
+    b.add_argument("--only", nargs="+", default=None, help="scenarios whose name contains one of these words")
+    b.add_argument("--rig", type=Path, default=None)
+    b.add_argument("--json", action="store_true",
+                   help="JSON rows (scenario, method, coefficient, true, mean, std, crlb_std, ...)")
+    b.add_argument("--no-progress", action="store_true")
+    b.set_defaults(func=cmd_bench_identification)
+
+    add_virtual_sensing_bench(bench)
