@@ -232,3 +232,24 @@ def test_sensor_aligner_counts_duplicates_and_missing_sensors():
     assert out.present[:, 1].tolist() == [True, False, True, False, True]
     assert al.counters["duplicate_a"] == 1 and al.counters["missing_b"] == 2
     assert np.all(out.values[:, 0] == 0.0)
+
+
+def test_sensor_aligner_is_the_core_aligner_with_optional_sensors_and_keeps_its_counters():
+    """The virtual-sensing aligner is the core StreamAligner (one implementation); its
+    counters keep the names and order /diagnostics prints, and every sample received is
+    released, late, duplicate or pending (NaN values pass to the filter)."""
+    from rotor_estimator.core.alignment import StreamAligner
+    from rotor_estimator.virtual_sensing.stream import SensorAligner
+    al = SensorAligner(["a", "b"], period_ns=1000.0, reorder_window_ns=3000)
+    assert isinstance(al.queue, StreamAligner)
+    assert list(al.counters) == ["released", "received_a", "received_b", "late_a", "late_b", "duplicate_a",
+                                 "duplicate_b", "missing_a", "missing_b"]
+    al.add_block("a", np.arange(0, 8000, 1000), np.full((8, 2), np.nan))
+    al.add_block("b", np.array([0, 1000, 1000]), np.ones((3, 2)))
+    first = al.pop_ready()
+    assert first.stamps_ns.tolist() == [0, 1000, 2000, 3000, 4000] and np.isnan(first.values[:, 0]).all()
+    al.add_block("b", np.array([4000, 6000]), np.ones((2, 2)))           # 4000 was released: late
+    al.pop_ready(flush=True)
+    c = al.counters
+    assert (c["late_b"], c["duplicate_b"], c["missing_b"], c["released"]) == (1, 1, 5, 8)
+    assert c["received_b"] == 5 == 3 + c["late_b"] + c["duplicate_b"] and al.pending == 0
