@@ -11,10 +11,11 @@ Rules (every input sample ends in exactly one counter ``<reason>_<stream>``, or 
 * **Matching**: samples of different streams whose stamps differ by at most
   ``match_tolerance_ns`` are one sample (nearest first, one-to-one, streams taken in their
   listed order); the sample's stamp is that of the first listed stream present in it.
-* **Screening** at arrival: the same stamp again on a stream, pending or (unless
-  ``duplicate_memory_ns`` is None) decided at the last decision or within
-  ``duplicate_memory_ns`` before the horizon, is ``duplicate`` (the first copy wins); a stamp already decided
-  is ``late`` (the filter cannot go back in time); an in-time stamp older than one already
+* **Screening** at arrival: a stamp already decided is ``late`` (the filter cannot go back
+  in time); the same stamp again on a stream while pending is ``duplicate`` (the first copy
+  wins). With ``duplicate_memory_ns`` (not None) the stamps of the last decision and those
+  within that much before the horizon are remembered, and a re-sent one (or a repeat inside
+  a block) is ``duplicate`` rather than ``late``. An in-time stamp older than one already
   received on its stream is put in order (``reordered``, informational).
 * **Horizon**: stamps ``<= newest stamp seen - reorder_window_ns`` (or the ``now_ns`` given
   to ``pop_ready``, mapped to the stamp clock through the smallest ``arrival_ns - stamp``
@@ -136,7 +137,15 @@ def _match(t1: np.ndarray, t2: np.ndarray, tol: int) -> np.ndarray:
 
 
 class StreamAligner:
-    """Queue that turns N named streams (and an optional held stream) into aligned samples.
+    """Queue that turns N named streams (and an optional held stream) into aligned samples
+    (rules in the module docstring).
+
+    * ``streams``: the streams, in order (the first listed present gives the stamp).
+    * ``match_tolerance_ns``, ``reorder_window_ns``: ns, integers >= 0.
+    * ``duplicate_memory_ns``: ns, or None to remember no decided stamp.
+    * ``reject_non_finite``: NaN/inf reject the whole sample (else passed on as they are).
+    * ``release_complete``: release a sample as soon as every stream is in.
+    * ``hold``: a sparse stream held on the samples (zero-order hold), or None.
 
     >>> al = StreamAligner([StreamSpec("a"), StreamSpec("b", required=False)], match_tolerance_ns=250,
     ...                    reorder_window_ns=0)
@@ -157,13 +166,16 @@ class StreamAligner:
         if any(isinstance(s.width, bool) or not isinstance(s.width, int) or s.width < 1 for s in specs):
             raise ConfigError(f"StreamAligner: stream widths must be positive integers, got "
                               f"{[s.width for s in specs]}")
+        for name, v in (("match_tolerance_ns", match_tolerance_ns), ("reorder_window_ns", reorder_window_ns),
+                        ("duplicate_memory_ns", 0 if duplicate_memory_ns is None else duplicate_memory_ns)):
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+                raise ConfigError(f"StreamAligner: {name} must be an integer >= 0 (ns), got {v!r}")
         self.specs = specs
         self.match_tolerance_ns = int(match_tolerance_ns)
         self.reorder_window_ns = int(reorder_window_ns)
         self.duplicate_memory_ns = None if duplicate_memory_ns is None else int(duplicate_memory_ns)
         self.reject_non_finite = reject_non_finite
         self.release_complete = release_complete
-        self.hold_spec = hold
         reasons = [r for r in _STREAM_REASONS
                    if (r != "unmatched" or any(s.required for s in specs))
                    and (r != "missing" or not all(s.required for s in specs))
@@ -184,10 +196,6 @@ class StreamAligner:
         self._last_emitted_ns: int | None = None
 
     # ----------------------------------------------------------------- status
-    @property
-    def stream_names(self) -> tuple[str, ...]:
-        return tuple(self._streams)
-
     @property
     def pending_count(self) -> dict[str, int]:
         """Samples waiting, per stream; the held-back sample counts once in each stream."""

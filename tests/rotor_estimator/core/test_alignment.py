@@ -164,11 +164,14 @@ def test_non_finite_values_pass_when_not_rejected():
 
 
 def test_stream_aligner_refuses_bad_streams_and_blocks():
-    """Unknown stream, wrong width, non-integer stamps and repeated names are refused by name."""
+    """Unknown stream, wrong width, non-integer stamps, repeated names and a negative window
+    are refused, naming the cause."""
     with pytest.raises(InputError, match="unique"):
         StreamAligner([StreamSpec("a"), StreamSpec("a")], 0, 0)
     with pytest.raises(ConfigError, match="width"):
         StreamAligner([StreamSpec("a", 0)], 0, 0)
+    with pytest.raises(ConfigError, match="reorder_window_ns"):
+        StreamAligner([StreamSpec("a")], 0, -1)
     al = three()
     with pytest.raises(InputError, match="unknown stream 'd'"):
         al.add_block("d", np.zeros(1, dtype=np.int64), np.zeros((1, 2)))
