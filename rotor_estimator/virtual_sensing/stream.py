@@ -44,7 +44,9 @@ class SensorAligner:
     leaves those channels out. A sample not newer than the last released stamp plus the
     tolerance is ``late_<sensor>``; the same stamp again on a pending sensor is
     ``duplicate_<sensor>`` (the first wins). Every sample received is released, late,
-    duplicate or pending. The sample's stamp is that of its first sensor in rotor-file order.
+    duplicate or pending. Matching is nearest first and one-to-one, so the sample's stamp is
+    that of its first sensor in rotor-file order whatever the arrival order, and a second,
+    different stamp of one sensor within the tolerance makes a sample of its own.
 
     >>> al = SensorAligner(["a", "b"], period_ns=1000)
     >>> al.add_block("a", np.array([0, 1000, 2000]), np.ones((3, 2)))

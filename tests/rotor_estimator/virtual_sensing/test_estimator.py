@@ -253,3 +253,24 @@ def test_sensor_aligner_is_the_core_aligner_with_optional_sensors_and_keeps_its_
     c = al.counters
     assert (c["late_b"], c["duplicate_b"], c["missing_b"], c["released"]) == (1, 1, 5, 8)
     assert c["received_b"] == 5 == 3 + c["late_b"] + c["duplicate_b"] and al.pending == 0
+
+
+def test_sensor_aligner_output_does_not_depend_on_arrival_order():
+    """Sensors with skewed stamps (within the tolerance) arriving within the reorder window give
+    the same samples, stamped by the first sensor in rotor-file order, whichever block arrives
+    first (the old first-arrival rule stamped them by the first block to arrive)."""
+    from rotor_estimator.virtual_sensing.stream import SensorAligner
+    t = np.arange(0, 20_000, 1000)
+    blocks = {"a": (t + 100, np.zeros((20, 2))), "b": (t, np.ones((20, 2))), "c": (t - 100, np.full((20, 2), 2.0))}
+    outs = []
+    for order in (("a", "b", "c"), ("c", "b", "a"), ("b", "c", "a")):
+        al = SensorAligner(["a", "b", "c"], period_ns=1000.0, reorder_window_ns=50_000)   # all in time
+        parts = []
+        for name in order:
+            al.add_block(name, *blocks[name])
+            parts.append(al.pop_ready())
+        parts.append(al.pop_ready(flush=True))
+        outs.append((np.concatenate([p.stamps_ns for p in parts]), np.concatenate([p.values for p in parts])))
+    for stamps, values in outs:
+        assert stamps.tolist() == (t + 100).tolist()
+        assert np.array_equal(values, outs[0][1]) and np.array_equal(values[:, :, 0], [[0.0, 1.0, 2.0]] * 20)
