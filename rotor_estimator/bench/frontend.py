@@ -25,8 +25,8 @@ def _best_of(fn, repeats: int = 5) -> float:
 
 
 def aligner_seconds(n_samples: int) -> float:
-    """Two probe planes in 200-sample blocks through :class:`SampleAligner`, popped after every pair."""
-    from rotor_estimator.core.alignment import SampleAligner
+    """Two probe planes in 200-sample blocks through the estimator's aligner, popped after every pair."""
+    from rotor_estimator.core.alignment import probe_aligner
 
     k = np.arange(n_samples)
     t = (1_000_000_000 + k * PERIOD_NS).astype(np.int64)
@@ -35,10 +35,10 @@ def aligner_seconds(n_samples: int) -> float:
     blocks = [(t[i:i + BLOCK], p1[i:i + BLOCK], p2[i:i + BLOCK]) for i in range(0, n_samples, BLOCK)]
 
     def run():
-        al = SampleAligner()
+        al = probe_aligner()
         for tb, a, b in blocks:
-            al.add_probe_block(1, tb, a)
-            al.add_probe_block(2, tb, b)
+            al.add_block("plane1", tb, a)
+            al.add_block("plane2", tb, b)
             al.pop_ready()
 
     return _best_of(run)

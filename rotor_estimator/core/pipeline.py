@@ -6,7 +6,7 @@ so after decoding they run the same code.
 
 Steps of one :meth:`EstimatorPipeline.process` call:
 
-1. The :class:`~rotor_estimator.core.alignment.SampleAligner` (time-ordered queue) releases
+1. The :func:`~rotor_estimator.core.alignment.probe_aligner` (time-ordered queue) releases
    complete 4-channel samples in strictly increasing stamp order; late, duplicate,
    non-finite and unmatched probe samples are counted there.
 2. The :class:`~rotor_estimator.core.tachometer.ShaftAngleTracker` gives the shaft angle,
@@ -40,7 +40,7 @@ from typing import Mapping
 import numpy as np
 
 from rotor_estimator.core import filter_kernel as kern
-from rotor_estimator.core.alignment import AlignedBlock, AlignmentConfig, SampleAligner
+from rotor_estimator.core.alignment import AlignedBlock, AlignmentConfig, probe_aligner
 from rotor_estimator.core.config import COEFFICIENT_NAMES, EstimatorConfig, RigConfig
 from rotor_estimator.core.ekf import StreamingEKF, initial_covariance
 from rotor_estimator.core.identifiability import IdentifiabilityReport, report_from_filter
@@ -285,7 +285,7 @@ class EstimatorPipeline:
         self._period_ns = 1e9 / self.align_config.sample_rate_hz
         self.ekf = StreamingEKF(rig, estimator_config, initial_coefficients=initial_coefficients)
         self.tracker = ShaftAngleTracker(self.tach_config)
-        self.aligner = SampleAligner(self.align_config)
+        self.aligner = probe_aligner(self.align_config)
         self._retired: dict[str, int] = {}            # counters of aligners replaced after a clock jump
         self._ready: list[AlignedBlock | None] = []    # flushed blocks to process first; None = restart motion
         self._waiting: list[AlignedBlock] = []         # aligned samples waiting for the shaft reference
@@ -377,9 +377,9 @@ class EstimatorPipeline:
             for t, xy, arrival in self._held[p]:
                 go = np.ones(t.size, dtype=bool) if everything else t <= gate
                 if go.all():
-                    self.aligner.add_probe_block(p, t, xy, arrival)
+                    self.aligner.add_block(f"plane{p}", t, xy, arrival)
                 elif go.any():
-                    self.aligner.add_probe_block(p, t[go], xy[go], arrival)
+                    self.aligner.add_block(f"plane{p}", t[go], xy[go], arrival)
                     keep.append((t[~go], xy[~go], arrival))
                 else:
                     keep.append((t, xy, arrival))
@@ -400,7 +400,7 @@ class EstimatorPipeline:
 
     def on_impact_block(self, stamps_ns: np.ndarray, f_n: np.ndarray) -> None:
         """Impact force samples ``f_n`` (N, 2) [fx, fy] in N (zero-order hold from each stamp)."""
-        self.aligner.add_impact_block(stamps_ns, f_n)
+        self.aligner.add_block("impact", stamps_ns, f_n)
 
     def reject_message(self, stream: str, reason: str) -> None:
         """Count a message that could not be used (e.g. ``"wrong_type"`` on ``"probe1"``)."""
@@ -429,14 +429,14 @@ class EstimatorPipeline:
         """The probe clock went back: finish the old timeline, start new queues."""
         self._events["clock_jumps"] += 1
         self._release_planes(everything=True)
-        block = self.aligner.flush()
+        block = AlignedBlock.from_samples(self.aligner.flush())
         if block.stamps_ns.size:
             self._waiting.append(block)
         self._ready.append(self._take_waiting(None))
         self._ready.append(None)
         for k, v in self.aligner.counters.items():
             self._retired[k] = self._retired.get(k, 0) + v
-        self.aligner = SampleAligner(self.align_config)
+        self.aligner = probe_aligner(self.align_config)
         self._newest_ns = None
         self._newest_pulse_ns = None
         self._probe_ns_at_pulse = None
@@ -456,7 +456,7 @@ class EstimatorPipeline:
         outputs = self._drain_ready()
         if now_ns is not None:
             self._release_planes(everything=True)
-        block = self.aligner.pop_ready(now_ns)
+        block = AlignedBlock.from_samples(self.aligner.pop_ready(now_ns))
         if block.stamps_ns.size:
             self._waiting.append(block)
         if not self._waiting:
@@ -495,7 +495,7 @@ class EstimatorPipeline:
         self._lag_s = 0.0
         outputs = self._drain_ready()
         self._release_planes(everything=True)
-        block = self.aligner.flush()
+        block = AlignedBlock.from_samples(self.aligner.flush())
         if block.stamps_ns.size:
             self._waiting.append(block)
         outputs += self._run(self._take_waiting(None))

@@ -1,6 +1,7 @@
 """Streaming virtual sensing: the same per-sample filter step, fed live (node) or from a bag.
 
-* :class:`SensorAligner`: time ordering of S sensors' sample blocks by stamp, counting late,
+* :class:`SensorAligner`: the virtual-sensing configuration of the core
+  :class:`~rotor_estimator.core.alignment.StreamAligner` (S optional sensors), counting late,
   duplicate and missing samples.
 * :class:`VirtualSensingPipeline`: keyphasor tracking, prediction across gaps, decimation, NIS
   coverage and a status for ``/diagnostics``; the node and ``virtual-sensing --bag`` both run it.
@@ -15,6 +16,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 from scipy.stats import chi2
 
+from rotor_estimator.core.alignment import StreamAligner, StreamSpec
 from rotor_estimator.core.errors import ConfigError, InputError
 from rotor_estimator.core.flexible.state_space import FlexibleStateSpace
 from rotor_estimator.core.linear_filters import single_threaded_blas
@@ -35,21 +37,16 @@ class AlignedSamples(NamedTuple):
 
 
 class SensorAligner:
-    """Time ordering of S sensors' sample blocks by stamp (a queue keyed by stamp).
-
-    * **Matching**: a sample joins the pending sample whose stamp is nearest, if within
-      ``match_tolerance_fraction`` of the sample period (that first stamp is kept);
-      otherwise it opens a new pending sample.
-    * **Release**, oldest first: a pending sample is released when every sensor is
-      present, or when it is ``reorder_window_ns`` older than the newest stamp seen, or
-      on ``pop_ready(flush=True)``; each sensor absent then counts ``missing_<sensor>``.
-    * **Late**: a sample not newer than the last released stamp (plus the tolerance) is
-      dropped (``late_<sensor>``): the filter cannot go back in time.
-    * **Duplicate**: a second sample of one sensor in one pending sample is dropped
-      (``duplicate_<sensor>``); the first wins.
-
-    Every sample received ends in exactly one of: released, ``late``, ``duplicate``, or
-    still pending.
+    """The virtual-sensing configuration of :class:`~rotor_estimator.core.alignment.StreamAligner`:
+    S optional sensor streams [x, y], each sample released as soon as every sensor is in
+    (or ``reorder_window_ns`` after the newest stamp seen, or on ``pop_ready(flush=True)``),
+    an absent sensor counted ``missing_<sensor>``; NaN/inf values pass to the filter, which
+    leaves those channels out. A sample not newer than the last released stamp plus the
+    tolerance is ``late_<sensor>``; the same stamp again on a pending sensor is
+    ``duplicate_<sensor>`` (the first wins). Every sample received is released, late,
+    duplicate or pending. Matching is nearest first and one-to-one, so the sample's stamp is
+    that of its first sensor in rotor-file order whatever the arrival order, and a second,
+    different stamp of one sensor within the tolerance makes a sample of its own.
 
     >>> al = SensorAligner(["a", "b"], period_ns=1000)
     >>> al.add_block("a", np.array([0, 1000, 2000]), np.ones((3, 2)))
@@ -63,84 +60,36 @@ class SensorAligner:
 
     def __init__(self, sensors: Sequence[str], period_ns: float, match_tolerance_fraction: float = 0.25,
                  reorder_window_ns: int = 200_000_000) -> None:
-        self.sensors = tuple(sensors)
-        if not self.sensors or len(set(self.sensors)) != len(self.sensors):
-            raise InputError(f"SensorAligner: sensor names must be unique and non-empty, got {self.sensors}")
         if not 0.0 <= match_tolerance_fraction < 0.5:
             raise ConfigError(f"match_tolerance_fraction: in [0, 0.5), got {match_tolerance_fraction!r}")
-        self._index = {s: i for i, s in enumerate(self.sensors)}
+        self.sensors = tuple(sensors)
         self.tolerance_ns = int(match_tolerance_fraction * period_ns)
-        self.reorder_window_ns = int(reorder_window_ns)
-        self._keys: list[int] = []
-        self._values: dict[int, np.ndarray] = {}
-        self._present: dict[int, np.ndarray] = {}
-        self._newest: int | None = None
-        self.last_released_ns: int | None = None
-        self.counters: dict[str, int] = {"released": 0}
-        for c in ("received", "late", "duplicate", "missing"):
-            for s in self.sensors:
-                self.counters[f"{c}_{s}"] = 0
+        self.queue = StreamAligner([StreamSpec(s, 2, required=False) for s in self.sensors], self.tolerance_ns,
+                                   int(reorder_window_ns), duplicate_memory_ns=None, reject_non_finite=False,
+                                   release_complete=True)
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """``released`` and per sensor ``received_``, ``late_``, ``duplicate_``, ``missing_``."""
+        c = self.queue.counters
+        return {"released": self.queue.released, **{f"{r}_{s}": c[f"{r}_{s}"] for r in
+                                                    ("received", "late", "duplicate", "missing") for s in self.sensors}}
 
     @property
     def pending(self) -> int:
-        return len(self._keys)
+        """Aligned samples waiting."""
+        return self.queue.pending_samples
 
     def add_block(self, sensor: str, stamps_ns: np.ndarray, values: np.ndarray) -> None:
         """Queue a block of one sensor: ``stamps_ns`` (N,) int ns, ``values`` (N, 2) [x, y]."""
-        i = self._index.get(sensor)
-        if i is None:
+        if sensor not in self.sensors:
             raise InputError(f"unknown sensor {sensor!r}; the rotor file has {list(self.sensors)}")
-        stamps = np.asarray(stamps_ns)
-        vals = np.asarray(values, dtype=float)
-        if stamps.ndim != 1 or not np.issubdtype(stamps.dtype, np.integer) or vals.shape != (len(stamps), 2):
-            raise InputError(f"sensor {sensor}: expected integer stamps (N,) and values (N, 2), got "
-                             f"{stamps.dtype} {stamps.shape} and {vals.shape}")
-        c, tol, keys = self.counters, self.tolerance_ns, self._keys
-        c[f"received_{sensor}"] += len(stamps)
-        for t, v in zip(stamps.tolist(), vals):
-            if self.last_released_ns is not None and t <= self.last_released_ns + tol:
-                c[f"late_{sensor}"] += 1
-                continue
-            j = bisect.bisect_left(keys, t)
-            key = None
-            for cand in (j - 1, j):
-                if 0 <= cand < len(keys) and abs(keys[cand] - t) <= tol and (
-                        key is None or abs(keys[cand] - t) < abs(key - t)):
-                    key = keys[cand]
-            if key is None:
-                key = t
-                keys.insert(j, t)
-                self._values[t] = np.full((len(self.sensors), 2), np.nan)
-                self._present[t] = np.zeros(len(self.sensors), bool)
-            if self._present[key][i]:
-                c[f"duplicate_{sensor}"] += 1
-                continue
-            self._present[key][i] = True
-            self._values[key][i] = v
-            if self._newest is None or t > self._newest:
-                self._newest = t
+        self.queue.add_block(sensor, stamps_ns, values)
 
     def pop_ready(self, flush: bool = False) -> AlignedSamples:
         """Release the decided samples (all pending ones with ``flush``)."""
-        horizon = None if self._newest is None else self._newest - self.reorder_window_ns
-        stamps, values, present = [], [], []
-        while self._keys:
-            k = self._keys[0]
-            pres = self._present[k]
-            if not (flush or pres.all() or (horizon is not None and k <= horizon)):
-                break
-            self._keys.pop(0)
-            stamps.append(k)
-            values.append(self._values.pop(k))
-            present.append(self._present.pop(k))
-            for s in np.flatnonzero(~pres):
-                self.counters[f"missing_{self.sensors[s]}"] += 1
-            self.last_released_ns = k
-        self.counters["released"] += len(stamps)
-        S = len(self.sensors)
-        return AlignedSamples(np.asarray(stamps, dtype=np.int64),
-                              np.asarray(values, dtype=float).reshape(-1, S, 2),
-                              np.asarray(present, dtype=bool).reshape(-1, S))
+        out = self.queue.flush() if flush else self.queue.pop_ready()
+        return AlignedSamples(out.stamps_ns, out.values.reshape(-1, len(self.sensors), 2), out.present)
 
 
 @dataclass(frozen=True)
@@ -239,7 +188,7 @@ class VirtualSensingPipeline:
 
     # ----------------------------------------------------------------- input
     def on_block(self, sensor: str, stamps_ns: np.ndarray, values: np.ndarray) -> None:
-        if sensor not in self.aligner._index:
+        if sensor not in self.aligner.sensors:
             self.counters["unknown_sensor_blocks"] += 1
             raise InputError(f"unknown sensor {sensor!r}; the rotor file has {list(self.aligner.sensors)}")
         self.aligner.add_block(sensor, stamps_ns, values)

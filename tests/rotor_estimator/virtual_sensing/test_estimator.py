@@ -233,3 +233,45 @@ def test_sensor_aligner_counts_duplicates_and_missing_sensors():
     assert out.present[:, 1].tolist() == [True, False, True, False, True]
     assert al.counters["duplicate_a"] == 1 and al.counters["missing_b"] == 2
     assert np.all(out.values[:, 0] == 0.0)
+
+
+def test_sensor_aligner_is_the_core_aligner_with_optional_sensors_and_keeps_its_counters():
+    """The virtual-sensing aligner is the core StreamAligner (one implementation); its
+    counters keep the names and order /diagnostics prints, and every sample received is
+    released, late, duplicate or pending (NaN values pass to the filter)."""
+    from rotor_estimator.core.alignment import StreamAligner
+    from rotor_estimator.virtual_sensing.stream import SensorAligner
+    al = SensorAligner(["a", "b"], period_ns=1000.0, reorder_window_ns=3000)
+    assert isinstance(al.queue, StreamAligner)
+    assert list(al.counters) == ["released", "received_a", "received_b", "late_a", "late_b", "duplicate_a",
+                                 "duplicate_b", "missing_a", "missing_b"]
+    al.add_block("a", np.arange(0, 8000, 1000), np.full((8, 2), np.nan))
+    al.add_block("b", np.array([0, 1000, 1000]), np.ones((3, 2)))
+    first = al.pop_ready()
+    assert first.stamps_ns.tolist() == [0, 1000, 2000, 3000, 4000] and np.isnan(first.values[:, 0]).all()
+    al.add_block("b", np.array([4000, 6000]), np.ones((2, 2)))           # 4000 was released: late
+    al.pop_ready(flush=True)
+    c = al.counters
+    assert (c["late_b"], c["duplicate_b"], c["missing_b"], c["released"]) == (1, 1, 5, 8)
+    assert c["received_b"] == 5 == 3 + c["late_b"] + c["duplicate_b"] and al.pending == 0
+
+
+def test_sensor_aligner_output_does_not_depend_on_arrival_order():
+    """Sensors with skewed stamps (within the tolerance) arriving within the reorder window give
+    the same samples, stamped by the first sensor in rotor-file order, whichever block arrives
+    first (the old first-arrival rule stamped them by the first block to arrive)."""
+    from rotor_estimator.virtual_sensing.stream import SensorAligner
+    t = np.arange(0, 20_000, 1000)
+    blocks = {"a": (t + 100, np.zeros((20, 2))), "b": (t, np.ones((20, 2))), "c": (t - 100, np.full((20, 2), 2.0))}
+    outs = []
+    for order in (("a", "b", "c"), ("c", "b", "a"), ("b", "c", "a")):
+        al = SensorAligner(["a", "b", "c"], period_ns=1000.0, reorder_window_ns=50_000)   # all in time
+        parts = []
+        for name in order:
+            al.add_block(name, *blocks[name])
+            parts.append(al.pop_ready())
+        parts.append(al.pop_ready(flush=True))
+        outs.append((np.concatenate([p.stamps_ns for p in parts]), np.concatenate([p.values for p in parts])))
+    for stamps, values in outs:
+        assert stamps.tolist() == (t + 100).tolist()
+        assert np.array_equal(values, outs[0][1]) and np.array_equal(values[:, :, 0], [[0.0, 1.0, 2.0]] * 20)
