@@ -153,47 +153,52 @@ def _stage_mapped(q, dq, ncol, theta, bvec, t, angle0, omega0, alpha, fgen, dmap
 
 
 @njit
+def _rk4_buffers(ncol):
+    """Scratch of one RK4 step: stage slopes ``k1..k4`` (8), their sensitivities ``d1..d4`` (8 x ncol) and
+    the stage argument ``qs`` (8), ``dqs`` (8 x ncol)."""
+    return (np.empty(8), np.empty(8), np.empty(8), np.empty(8), np.empty((8, ncol)), np.empty((8, ncol)),
+            np.empty((8, ncol)), np.empty((8, ncol)), np.empty(8), np.empty((8, ncol)))
+
+
+@njit
+def _stage_point(q, dq, a, k, d, qs, dqs):
+    """Argument of the next RK4 stage: ``qs = q + a k`` (8) and ``dqs = dq + a d`` (8 x ncol)."""
+    for i in range(8):
+        qs[i] = q[i] + a * k[i]
+        for c in range(dq.shape[1]):
+            dqs[i, c] = dq[i, c] + a * d[i, c]
+
+
+@njit
+def _rk4_combine(q, dq, h, k1, k2, k3, k4, d1, d2, d3, d4):
+    """The RK4 step (Eq. 12) from its four stages, in place: ``q += h/6 (k1 + 2 k2 + 2 k3 + k4)``, same for ``dq``."""
+    w = h / 6.0
+    for i in range(8):
+        q[i] += w * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        for c in range(dq.shape[1]):
+            dq[i, c] += w * (d1[i, c] + 2.0 * d2[i, c] + 2.0 * d3[i, c] + d4[i, c])
+
+
+@njit
 def rk4_step(q, dq, theta, bvec, h, angle0, omega0, alpha, fgen, dmap, powers, speed_ref, speed_scale, minv, gyro,
              wimb, ct, cb):
     """Eq. 12 for the generalized model: one RK4 step of length ``h`` (s) in place on ``q`` (8) and on the
     sensitivities ``dq`` (8 x ncol), with the direct derivatives w.r.t. ``theta`` added from column ``ct``
     and w.r.t. ``b`` from column ``cb`` (-1: none)."""
     ncol = dq.shape[1]
-    k1 = np.empty(8)
-    k2 = np.empty(8)
-    k3 = np.empty(8)
-    k4 = np.empty(8)
-    d1 = np.empty((8, ncol))
-    d2 = np.empty((8, ncol))
-    d3 = np.empty((8, ncol))
-    d4 = np.empty((8, ncol))
-    qs = np.empty(8)
-    dqs = np.empty((8, ncol))
+    k1, k2, k3, k4, d1, d2, d3, d4, qs, dqs = _rk4_buffers(ncol)
     _stage_mapped(q, dq, ncol, theta, bvec, 0.0, angle0, omega0, alpha, fgen, dmap, powers, speed_ref,
                   speed_scale, minv, gyro, wimb, ct, cb, k1, d1)
-    for i in range(8):
-        qs[i] = q[i] + 0.5 * h * k1[i]
-        for c in range(ncol):
-            dqs[i, c] = dq[i, c] + 0.5 * h * d1[i, c]
+    _stage_point(q, dq, 0.5 * h, k1, d1, qs, dqs)
     _stage_mapped(qs, dqs, ncol, theta, bvec, 0.5 * h, angle0, omega0, alpha, fgen, dmap, powers, speed_ref,
                   speed_scale, minv, gyro, wimb, ct, cb, k2, d2)
-    for i in range(8):
-        qs[i] = q[i] + 0.5 * h * k2[i]
-        for c in range(ncol):
-            dqs[i, c] = dq[i, c] + 0.5 * h * d2[i, c]
+    _stage_point(q, dq, 0.5 * h, k2, d2, qs, dqs)
     _stage_mapped(qs, dqs, ncol, theta, bvec, 0.5 * h, angle0, omega0, alpha, fgen, dmap, powers, speed_ref,
                   speed_scale, minv, gyro, wimb, ct, cb, k3, d3)
-    for i in range(8):
-        qs[i] = q[i] + h * k3[i]
-        for c in range(ncol):
-            dqs[i, c] = dq[i, c] + h * d3[i, c]
+    _stage_point(q, dq, h, k3, d3, qs, dqs)
     _stage_mapped(qs, dqs, ncol, theta, bvec, h, angle0, omega0, alpha, fgen, dmap, powers, speed_ref,
                   speed_scale, minv, gyro, wimb, ct, cb, k4, d4)
-    w = h / 6.0
-    for i in range(8):
-        q[i] += w * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-        for c in range(ncol):
-            dq[i, c] += w * (d1[i, c] + 2.0 * d2[i, c] + 2.0 * d3[i, c] + d4[i, c])
+    _rk4_combine(q, dq, h, k1, k2, k3, k4, d1, d2, d3, d4)
 
 
 # ------------------------------------------------------------------------------------ model: seed special case
@@ -295,39 +300,21 @@ def transition_seed(x, h, angle0, omega0, alpha, fimp, minv, gyro, moments, phas
     because the streaming EKF and :mod:`rotor_estimator.core.crlb` depend on its exact operation order."""
     q = x[:8].copy()
     r = x[8:]
-    k1 = np.empty(8)
-    k2 = np.empty(8)
-    k3 = np.empty(8)
-    k4 = np.empty(8)
-    d1 = np.empty((8, 16))
-    d2 = np.empty((8, 16))
-    d3 = np.empty((8, 16))
-    d4 = np.empty((8, 16))
-    dq = np.zeros((8, 16))
+    k1, k2, k3, k4, d1, d2, d3, d4, qs, dqs = _rk4_buffers(16)
+    eye = np.zeros((8, 16))
     for i in range(8):
-        dq[i, i] = 1.0
-    _stage_seed(q, r, 0.0, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wimb, wimp, dq, k1, d1)
-    qs = np.empty(8)
+        eye[i, i] = 1.0
+    _stage_seed(q, r, 0.0, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wimb, wimp, eye, k1, d1)
+    _stage_point(q, eye, 0.5 * h, k1, d1, qs, dqs)
+    _stage_seed(qs, r, 0.5 * h, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wimb, wimp, dqs, k2, d2)
+    _stage_point(q, eye, 0.5 * h, k2, d2, qs, dqs)
+    _stage_seed(qs, r, 0.5 * h, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wimb, wimp, dqs, k3, d3)
+    _stage_point(q, eye, h, k3, d3, qs, dqs)
+    _stage_seed(qs, r, h, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wimb, wimp, dqs, k4, d4)
+    phi_m[:, :] = eye
+    _rk4_combine(q, phi_m, h, k1, k2, k3, k4, d1, d2, d3, d4)
     for i in range(8):
-        qs[i] = q[i] + 0.5 * h * k1[i]
-        for c in range(16):
-            dq[i, c] = (1.0 if i == c else 0.0) + 0.5 * h * d1[i, c]
-    _stage_seed(qs, r, 0.5 * h, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wimb, wimp, dq, k2, d2)
-    for i in range(8):
-        qs[i] = q[i] + 0.5 * h * k2[i]
-        for c in range(16):
-            dq[i, c] = (1.0 if i == c else 0.0) + 0.5 * h * d2[i, c]
-    _stage_seed(qs, r, 0.5 * h, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wimb, wimp, dq, k3, d3)
-    for i in range(8):
-        qs[i] = q[i] + h * k3[i]
-        for c in range(16):
-            dq[i, c] = (1.0 if i == c else 0.0) + h * d3[i, c]
-    _stage_seed(qs, r, h, angle0, omega0, alpha, fimp, minv, gyro, moments, phases, wimb, wimp, dq, k4, d4)
-    w = h / 6.0
-    for i in range(8):
-        x[i] = q[i] + w * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-        for c in range(16):
-            phi_m[i, c] = (1.0 if i == c else 0.0) + w * (d1[i, c] + 2.0 * d2[i, c] + 2.0 * d3[i, c] + d4[i, c])
+        x[i] = q[i]
 
 
 # ------------------------------------------------------------------------------------ predict
@@ -475,7 +462,7 @@ def _innovation(x, P, y, hp, r_var, blas_order):
     """Eqs. 15 and 17: ``(P H^T (n x 4), S = H P H^T + R (symmetrized), e = y - H x)``."""
     if blas_order:
         pht = np.ascontiguousarray(P[:, 4:8]) @ np.ascontiguousarray(hp.T)  # n x 4
-        S = hp @ pht[4:8, :]
+        S = hp @ np.ascontiguousarray(pht[4:8, :])
         for i in range(4):
             S[i, i] += r_var[i]
         S = 0.5 * (S + S.T)
@@ -607,6 +594,15 @@ def update(x, P, y, hp, r_var, gate, innov_out, s_std_out, blas_order):
     return STATUS_UPDATED, nis
 
 
+@njit
+def healthy(x, P):
+    """False when a state is NaN/inf or a variance is not a finite positive number (the filter diverged)."""
+    for i in range(x.shape[0]):
+        if not math.isfinite(x[i]) or not P[i, i] > 0.0 or not math.isfinite(P[i, i]):
+            return False
+    return True
+
+
 # ------------------------------------------------------------------------------------ streaming driver
 @njit
 def run_block(x, P, dt_s, angle_rad, speed_rad_s, accel_rad_s2, impact_n, y, skip, minv, gyro, moments, phases,
@@ -664,10 +660,6 @@ def run_block(x, P, dt_s, angle_rad, speed_rad_s, accel_rad_s2, impact_n, y, ski
             for i in range(4):
                 innov_out[k, i] = innov[i]
                 s_std_out[k, i] = sstd[i]
-        healthy = True
-        for i in range(16):
-            if not math.isfinite(x[i]) or not P[i, i] > 0.0 or not math.isfinite(P[i, i]):
-                healthy = False
-        if not healthy:
+        if not healthy(x, P):
             return k
     return n

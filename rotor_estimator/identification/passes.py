@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from rotor_estimator.core.filter_kernel import add_process_noise, predict, rk4_step, transition, update
+from rotor_estimator.core.filter_kernel import add_process_noise, healthy, predict, rk4_step, update
 from rotor_estimator.core.jit import njit
 
 
@@ -145,11 +145,7 @@ def ekf_pass(x, P, nth, nbs, bfixed, nominal, store, dt, angle, speed, accel, fg
         if store:
             xf_out[k] = x
             pf_out[k] = P
-        ok = True
-        for i in range(m):
-            if not math.isfinite(x[i]) or not P[i, i] > 0.0:
-                ok = False
-        if not ok:
+        if not healthy(x, P):
             return k
     return n
 
@@ -245,10 +241,6 @@ def ukf_pass(x, P, nth, nbs, bfixed, wm, wc, lam, dt, angle, speed, accel, fgen,
             if use[k]:
                 st, nis = update(x, P, y[k], hp, r_var, gate, innov, sstd, True)
                 nis_out[k] = nis
-        ok = True
-        for i in range(m):
-            if not math.isfinite(x[i]) or not P[i, i] > 0.0:
-                ok = False
-        if not ok:
+        if not healthy(x, P):
             return k
     return n
