@@ -22,6 +22,10 @@ Building blocks, one copy each:
 * **update** (:func:`update`) -- Eqs. 15-17: the measurement reads the 4 displacement states through
   the probe map (Eq. 6), so the gain needs ``P[:, 4:8]`` and a 4x4 innovation covariance;
   Cholesky solves, Mahalanobis gate, Joseph form, symmetric result.
+* **operation order** -- :func:`propagate_covariance` and :func:`update` take ``blas_order``: numpy
+  products and LAPACK solves (identification) or unrolled loops (streaming EKF). The formulas are the
+  same; each caller keeps the order its published outputs were computed with (bit-identical results),
+  and the tests hold both orders to the textbook formulas.
 * :func:`run_block` -- the streaming driver (split into equal sub-steps when a gap makes a step
   longer than ``max_step_s``). Identification's drivers (batch sensitivities, EKF/RTS/UKF passes)
   are in :mod:`rotor_estimator.identification.passes`.
