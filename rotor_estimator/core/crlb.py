@@ -6,7 +6,7 @@ The parameters ``theta`` are the 8 coefficients plus, as nuisance parameters, th
 motion states at the first sample (the estimator does not know them either), and
 optionally the imbalance (2 components per plane) when it is unknown. The
 sensitivities are propagated with the exact Jacobian of the RK4 step of Eq. 12 along
-the noise-free trajectory (:func:`rotor_estimator.core.filter_kernel._rk4_with_jacobian`),
+the noise-free trajectory (:func:`rotor_estimator.core.filter_kernel.transition_seed`),
 and cross-checked in the tests against finite differences of the independent
 simulator.
 
@@ -22,7 +22,7 @@ import numpy as np
 
 from rotor_estimator.core.jit import njit
 from rotor_estimator.core.ekf import FilterModel
-from rotor_estimator.core.filter_kernel import _rk4_with_jacobian
+from rotor_estimator.core.filter_kernel import transition_seed
 
 
 @dataclass
@@ -80,8 +80,8 @@ def _sensitivities_fim(x0, dt, angle, speed, accel, impact, minv, gyro, moments,
             break
         fimp[0] = impact[k, 0]
         fimp[1] = impact[k, 1]
-        _rk4_with_jacobian(x, dt[k], angle[k], speed[k], accel[k], fimp, minv, gyro, moments, phases, wimb, wimp,
-                           phi_m)
+        transition_seed(x, dt[k], angle[k], speed[k], accel[k], fimp, minv, gyro, moments, phases, wimb, wimp,
+                        phi_m)
         new = np.zeros((8, n_par))
         for i in range(8):
             for c in range(n_par):
@@ -106,8 +106,8 @@ def _sensitivities_fim(x0, dt, angle, speed, accel, impact, minv, gyro, moments,
                     ph[j] = phases[j] + (0.0 if comp == 0 else 0.5 * np.pi)
                     phi_dummy = np.empty((8, 16))
                     zero_f = np.zeros(2)
-                    _rk4_with_jacobian(xb, dt[k], angle[k], speed[k], accel[k], zero_f, minv, gyro, m_unit, ph,
-                                       wimb, wimp, phi_dummy)
+                    transition_seed(xb, dt[k], angle[k], speed[k], accel[k], zero_f, minv, gyro, m_unit, ph,
+                                    wimb, wimp, phi_dummy)
                     col = 16 + 2 * j + comp
                     for i in range(8):
                         new[i, col] += xb[i]

@@ -65,7 +65,7 @@ class FilterModel:
 
 @dataclass
 class BlockResult:
-    """Per-sample outputs of a block: status codes (``ekf_kernel.STATUS_*``), NIS,
+    """Per-sample outputs of a block: status codes (``filter_kernel.STATUS_*``), NIS,
     innovation ``y - H s_bar`` (m) and predicted innovation std ``sqrt(diag S)`` (m)."""
 
     status: np.ndarray

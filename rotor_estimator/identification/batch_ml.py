@@ -7,7 +7,7 @@ unknown, and every record's initial motion state. The negative log-likelihood is
 ``sum_k |y_k - Hp z_k|^2 / (2 sigma^2)``; it is minimized by Levenberg-Marquardt on the
 normal equations ``(J^T J + mu diag) dp = J^T e`` with the analytic sensitivities
 ``J`` propagated through the exact Jacobian of each RK4 step
-(:func:`._kernel.sensitivity_pass`). The response is linear in ``q0`` and ``b``, so
+(:func:`.passes.sensitivity_pass`). The response is linear in ``q0`` and ``b``, so
 Gauss-Newton solves those in one step; only ``theta`` needs iterating (the variable
 projection idea, obtained here implicitly). At the optimum ``J^T J / sigma^2`` is the
 Fisher information: its inverse is the reported covariance, i.e. the CRLB evaluated
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rotor_estimator.core.errors import InputError
-from rotor_estimator.identification import _kernel
+from rotor_estimator.identification import passes
 from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
 from rotor_estimator.identification.result import IdentificationResult
 
@@ -84,7 +84,7 @@ class _Problem:
         fim = np.zeros((self.n_par, self.n_par))
         for r, (rec, trial) in enumerate(zip(self.records, self.trial)):
             q0 = p[self.n_shared + 8 * r:self.n_shared + 8 * r + 8]
-            c, g, f, _ = _kernel.sensitivity_pass(
+            c, g, f, _ = passes.sensitivity_pass(
                 np.ascontiguousarray(q0), np.ascontiguousarray(theta), np.ascontiguousarray(b + trial),
                 self.estimate_b, rec.dt_s, rec.angle_rad, rec.speed_rad_s, rec.accel_rad_s2, rec.force_gen_n,
                 rec.y(), rec.use, self.arrays.hp, self.rinv, self.dmap, self.powers, self.model.speed_ref_rad_s,

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rotor_estimator.identification import _kernel
+from rotor_estimator.identification import passes
 from rotor_estimator.core.fisher import eliminate_nuisance
 from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
 
@@ -24,7 +24,7 @@ def record_information(arrays: RigArrays, model: CoefficientModel, record: Recor
                        noise_std_m: float) -> np.ndarray:
     """Full information of ``[q0 (8), theta, b?]`` from one record (noise-free response from ``q0``)."""
     rinv = np.full(4, 1.0 / noise_std_m)
-    _, _, fim, _ = _kernel.sensitivity_pass(
+    _, _, fim, _ = passes.sensitivity_pass(
         np.asarray(q0, dtype=float), np.ascontiguousarray(theta, dtype=float),
         np.ascontiguousarray(imbalance_kg_m, dtype=float), estimate_imbalance, record.dt_s, record.angle_rad,
         record.speed_rad_s, record.accel_rad_s2, record.force_gen_n, np.zeros((0, 4)), record.use, arrays.hp, rinv,

@@ -1,10 +1,12 @@
 """Recursive estimators on the augmented state ``[v, z (8), theta, b?]``: EKF, UKF, EKF + RTS smoother.
 
-* **EKF** -- Miller & Howard Eqs. 7-17 on the generalized model of :mod:`._kernel`:
-  RK4 state prediction with its exact Jacobian, linear Joseph-form update, the
-  coefficients (and, when unknown, the imbalance moments) as constant states. With
-  identical bearings, known imbalance and constant coefficients it is the same filter
-  as :class:`rotor_estimator.core.ekf.StreamingEKF` (checked by a test). ``passes`` repeats
+* **EKF** -- Miller & Howard Eqs. 7-17 on the generalized model, with the ``predict`` and
+  ``update`` building blocks of :mod:`rotor_estimator.core.filter_kernel` (driven by
+  :func:`.passes.ekf_pass`): RK4 state prediction with its exact Jacobian, linear Joseph-form
+  update, the coefficients (and, when unknown, the imbalance moments) as constant states. With
+  identical bearings, known imbalance and constant coefficients it is the filter of
+  :class:`rotor_estimator.core.ekf.StreamingEKF`, whose seed-model prediction equals the
+  generalized one to rounding (checked by a test). ``passes`` repeats
   the pass from the previous pass's estimate with the prior covariance (the paper's
   multi-pass use).
 * **UKF** -- the same model with the prediction done by propagating filterpy's
@@ -29,7 +31,7 @@ import numpy as np
 
 from rotor_estimator.core.config import EstimatorConfig
 from rotor_estimator.core.errors import ConfigError, FilterDivergedError
-from rotor_estimator.identification import _kernel
+from rotor_estimator.identification import passes
 from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
 from rotor_estimator.identification.result import IdentificationResult
 
@@ -123,7 +125,7 @@ class _Setup:
         xf = np.zeros((n if store else 0, self.m))
         pf = np.zeros((n if store else 0, self.m, self.m))
         nis = np.full(n, np.nan)
-        stop = _kernel.ekf_pass(x, P, self.nth, self.nbs, self.bfixed, nominal, store, *self.common,
+        stop = passes.ekf_pass(x, P, self.nth, self.nbs, self.bfixed, nominal, store, *self.common,
                                 self.record.y(), self.record.use, self.arrays.hp, self.r_var, self.opts.gate_nis,
                                 self.opts.accel_psd, self.rw_rate, *self.model_args, xf, pf, nis)
         if stop < n:
@@ -135,7 +137,7 @@ class _Setup:
         xs = np.zeros_like(xf)
         ps0 = np.zeros((self.m, self.m))
         keep = np.zeros(((n - 1) // keep_every + 1 if keep_every else 0, self.m, self.m))
-        _kernel.rts_pass(nominal, xf, pf, self.nth, self.nbs, self.bfixed, *self.common, self.opts.accel_psd,
+        passes.rts_pass(nominal, xf, pf, self.nth, self.nbs, self.bfixed, *self.common, self.opts.accel_psd,
                          self.rw_rate, *self.model_args, xs, ps0, keep, keep_every)
         return xs, ps0, keep
 
@@ -213,7 +215,7 @@ def run_ukf(arrays: RigArrays, model: CoefficientModel, record: Record, options:
     for _ in range(options.passes):
         x, P = s.prior(theta, b)
         nis = np.full(n, np.nan)
-        stop = _kernel.ukf_pass(x, P, s.nth, s.nbs, s.bfixed, wm, wc, lam, *s.common, record.y(), record.use,
+        stop = passes.ukf_pass(x, P, s.nth, s.nbs, s.bfixed, wm, wc, lam, *s.common, record.y(), record.use,
                                 arrays.hp, s.r_var, options.gate_nis, options.accel_psd, s.rw_rate, *s.model_args, nis)
         if stop < n:
             raise FilterDivergedError(f"UKF: state or covariance not finite at sample {stop}")

@@ -23,7 +23,7 @@ from rotor_estimator.core.config import RigConfig
 from rotor_estimator.core.errors import ConfigError
 from rotor_estimator.core.model import point_force_weights
 from rotor_estimator.core.simulator import Impact, Scenario
-from rotor_estimator.identification import _kernel
+from rotor_estimator.identification import passes as _kernel
 from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
 
 RPM = 2.0 * math.pi / 60.0

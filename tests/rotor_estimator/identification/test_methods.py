@@ -2,7 +2,7 @@
 the smoother does not increase the error."""
 import numpy as np
 
-from rotor_estimator.identification import _kernel
+from rotor_estimator.core import filter_kernel
 from rotor_estimator.identification.batch_ml import BatchOptions, fit
 from rotor_estimator.identification.kalman import KalmanOptions, run_ekf, run_ekf_rts, run_ukf, ukf_weights
 from rotor_estimator.identification.planner import evaluate
@@ -51,7 +51,7 @@ def test_ukf_matches_filterpy_unscented_kalman_filter(seed_rig_file, impact_sim,
     def fx(x, dt):
         k = state["k"]
         q = x[:8].copy()
-        _kernel.rk4_step(q, np.zeros((8, 0)), x[8:].copy(), arrays.imbalance_nominal_kg_m, dt, sub.angle_rad[k],
+        filter_kernel.rk4_step(q, np.zeros((8, 0)), x[8:].copy(), arrays.imbalance_nominal_kg_m, dt, sub.angle_rad[k],
                          sub.speed_rad_s[k], sub.accel_rad_s2[k], sub.force_gen_n[k], dmap, powers, 0.0, 1.0,
                          arrays.minv, arrays.gyro, arrays.wimb, -1, -1)
         return np.concatenate([q, x[8:]])

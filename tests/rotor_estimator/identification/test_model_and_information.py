@@ -1,4 +1,5 @@
-"""The generalized kernels against the core simulator, the core CRLB and the core EKF."""
+"""The generalized model against the core simulator and the core CRLB (the filter kernel's own properties,
+including the seed special case against the generalized model, are in tests/rotor_estimator/core/test_filter_kernel.py)."""
 
 import numpy as np
 import pytest
@@ -8,11 +9,8 @@ from rotor_estimator.core.ekf import FilterModel
 from rotor_estimator.core.errors import ConfigError
 from rotor_estimator.core.fisher import bound
 from rotor_estimator.identification.information import design_information
-from rotor_estimator.identification.kalman import KalmanOptions, run_ekf
-from rotor_estimator.identification.problem import record_from_recording
 from rotor_estimator.identification.scenarios import (SpeedSegment, TestDesign, design_from_scenario,
                                                       simulate_design)
-from rotor_estimator.core.offline import estimate
 from rotor_estimator.core.simulator import Scenario, paper_scenario, simulate
 
 SWEEP = Scenario(duration_s=0.3, discard_initial_s=0.01, impacts=(), speed_start_rad_s=2094.4,
@@ -40,15 +38,6 @@ def test_information_equals_core_crlb(seed_rig_file, arrays, model8, true8, unkn
     ours = bound(design_information(arrays, model8, recs, true8, estimate_imbalance=unknown,
                                     noise_std_m=rig.noise_std_m), 8).std
     assert np.allclose(ours, core_std, rtol=1e-5)
-
-
-def test_generic_ekf_equals_core_streaming_ekf(seed_rig_file, impact_sim, arrays, model8):
-    rig, cfg = seed_rig_file.rig, seed_rig_file.estimator
-    core = estimate(impact_sim.recording, rig, cfg)
-    ours = run_ekf(arrays, model8, record_from_recording(rig, impact_sim.recording),
-                   KalmanOptions.from_config(cfg, model8))
-    assert np.allclose(ours.theta, core.coefficients, rtol=1e-7)
-    assert np.allclose(ours.covariance, core.covariance, rtol=1e-5, atol=1e-12 * np.abs(core.covariance).max())
 
 
 def test_design_validation_names_the_field():
