@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """ament_python package that also installs with plain pip on a machine without ROS."""
 import glob
 import os

@@ -1,4 +1,6 @@
 #!/usr/bin/env python3
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind benchmark of the sim-to-real diagnosis (a script, not a test; about 50 min for 36 cases on 2 cores).
 
     .venv/bin/python benchmarks/bench_diagnosis.py --cases 36 --seed 2024 [--out DIR] [--jobs 2] [--no-ross] [--json]

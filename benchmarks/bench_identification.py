@@ -1,4 +1,6 @@
 #!/usr/bin/env python3
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Identification benchmark as a script (same as ``rotor-estimator bench identification``).
 
 EKF, UKF, EKF + RTS and batch output-error ML, over seeded runs of: the seed's

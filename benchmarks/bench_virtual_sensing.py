@@ -1,4 +1,6 @@
 #!/usr/bin/env python3
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Paper-scale virtual-sensing benchmark (Neisi et al. 2022: UKF, 150 states, 8 observations,
 8192 samples, "more than eight hours").
 

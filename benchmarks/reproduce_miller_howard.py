@@ -1,4 +1,6 @@
 #!/usr/bin/env python3
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Accuracy: Miller & Howard Table 3 side by side with ours and the CRLB.
 
 Same as ``rotor-estimator reproduce miller-howard [--runs N] [--json] [--plots DIR]``. Targets

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Message adapters: ROS messages <-> plain arrays, for rclpy and rosbags message classes alike.
 
 Decoders read fields by name and dispatch on the message type name, so the

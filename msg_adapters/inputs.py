@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Adapters for the estimator's input topics: probes, keyphasor, impact force.
 
 * probes (``/rotor/probe1``, ``/rotor/probe2``): ``geometry_msgs/msg/PointStamped``

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind withheld-effect cases: records with zero, one or two hidden effects, labels kept apart.
 
 Each case draws a speed (8-24 krpm), probe noise (0.5-2 um), 1-3 hammer impacts (200-600 N,

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind benchmark of the diagnosis: generate a fresh withheld-effect set, diagnose, then score.
 
 The diagnosis step reads only ``cases/<id>/recording.npz`` and ``rig.yaml``; the labels

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Effect-aware data simulator: the rig of Eq. 2 plus any of the hidden effects, for blind tests.
 
 Independent of the diagnosis's numerics on purpose: fixed-step RK4 on a grid

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The same EKF written the straightforward way with filterpy's ``ExtendedKalmanFilter``.
 
 Prediction uses the numpy reference RK4 step and its Jacobian

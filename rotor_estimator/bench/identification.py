@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator bench identification``: every method on every scenario against the CRLB.
 
 Each run simulates the scenario with the core simulator (its own noise seed), reads the

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator bench live``: the estimator node through real rclpy, in one process.
 
 A publisher (its own executor thread, publishing from a third thread on wall-clock due

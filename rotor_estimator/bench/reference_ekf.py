@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Plain-numpy reference of one EKF step, written with whole matrices for reading and checking.
 
 This is the same discrete model as the compiled kernel (RK4 step of Eq. 12, its exact

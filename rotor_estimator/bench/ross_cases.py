@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind cases from ROSS (``ross-rotordynamics`` 2.3.0, optional extra): an independent FE simulator.
 
 ROSS builds a Timoshenko finite-element rotor (6 DOF per node) with its own bearing,

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """argparse ``type=`` callables that refuse out-of-range numbers with a message naming the range.
 
 argparse turns :class:`argparse.ArgumentTypeError` into ``<prog>: error: argument --seed: ...``

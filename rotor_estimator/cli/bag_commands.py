@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Bag commands: ``replay``, ``simulate``, ``import`` and ``bench live``.
 
 ``replay`` runs the estimator node's logic (:class:`~rotor_estimator.core.pipeline.EstimatorPipeline`

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Subcommands of ``rotor-estimator`` that live in their own modules.
 
 Each module exposes ``add_parsers(subparsers)`` and, if it has benchmarks,

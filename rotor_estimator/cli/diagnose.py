@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator diagnose BAG --rig RIG [--report DIR] [--json]`` and ``bench diagnosis``.
 
 Reading bags goes through :mod:`rotor_estimator.io.bags` here only (the diagnosis core imports

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator plan``, ``rotor-estimator identify`` and ``rotor-estimator bench identification``.
 
 Thin shells over :mod:`rotor_estimator.identification`; heavy imports inside the handlers.

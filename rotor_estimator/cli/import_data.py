@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator import``: a DAQ recording (CSV, NPZ, HDF5) as an input bag.
 
 A thin shell over :mod:`rotor_estimator.io.daq_import`: everything is read and validated before the

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Command-line wiring for virtual sensing (argparse; no ROS).
 
 ``rotor-estimator virtual-sensing``: leave-one-station-out validation on a bundled

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Time ordering and sample-exact alignment of the two probe planes and the impact force.
 
 A plain-Python measurement queue keyed by stamp (robot_localization style), testable

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Rig and estimator configuration: frozen, typed dataclasses validated at load.
 
 All quantities are SI. Axial positions are signed coordinates along the shaft,

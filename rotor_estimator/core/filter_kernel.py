@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Compiled inner loop of the continuous-discrete EKF (Eqs. 9-17 of Miller & Howard).
 
 One call processes a block of samples; the per-sample API calls it with a block of

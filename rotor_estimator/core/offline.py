@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Run the EKF over a whole recording held in memory (arrays, no ROS).
 
 Used by the reproduction, the benchmarks and the diagnosis. Bags go through

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The estimator node's whole logic on plain arrays (no ROS): ordering, shaft reference, EKF, outputs.
 
 The live node (:mod:`rotor_estimator.ros.estimator_node`) and offline replay

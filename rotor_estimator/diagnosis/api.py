@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``diagnose``: nominal fit, residual budget, effect ranking and the before/after table.
 
 The JSON summary (``Diagnosis.summary()``) carries at least ``where``, ``ranking``,

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Coupled flexible-shaft effect: an equivalent Euler-Bernoulli beam on the fitted bearings.
 
 The rig file gives only the rotor's mass ``m``, transverse and polar inertias about the

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """State-space forms of the nominal rigid rotor and of its structural augmentations.
 
 Nominal (Miller & Howard, Eq. 2 in first-order form, state ``q = [v, z]``)::

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Fit every candidate effect, rank by evidence (BIC) and by held-out prediction, pick a winner.
 
 Decision rule (documented in the report):

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The diagnosis report: Markdown with PNG figures (matplotlib Agg) and the JSON summary.
 
 Plotting lives here, not in the numerical modules. Figures: residual spectra before and

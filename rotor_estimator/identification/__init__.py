@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Identification beyond the seed: imbalance-only sweeps, four methods, speed-dependent and
 16-coefficient models, the excitation planner and the identifiability report.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Compiled kernels of the generalized rigid-rotor model used by the identification methods.
 
 The model is Eq. 2 of Miller & Howard with two generalizations, both reducing to the

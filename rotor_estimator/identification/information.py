@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Fisher information and Cramér-Rao bounds of the generalized model, for one or several records.
 
 For Gaussian probe noise ``y_k = Hp z_k(p) + v_k``, ``v_k ~ N(0, R)``, the information is

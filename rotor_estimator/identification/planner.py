@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Excitation planner: the Cramér-Rao bound of candidate tests and the shortest one meeting a target.
 
 For each candidate :class:`~.scenarios.TestDesign` the noise-free response is simulated

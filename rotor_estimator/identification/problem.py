@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The identification problem: rig arrays, coefficient parameterization and test records.
 
 * :class:`CoefficientModel` maps the estimated parameters ``theta`` to the 16 physical

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Test definitions: sweeps, dwells, multi-impact tests, trial weights; and their simulation.
 
 A :class:`TestDesign` is what an engineer runs: a speed profile made of linear

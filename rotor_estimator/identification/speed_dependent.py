@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Speed-dependent coefficients: a sweep must not silently average them.
 
 Two models, both on the generalized kernel:

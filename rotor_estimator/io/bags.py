@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Rosbag2 (MCAP) bags: write and read a :class:`RigRecording`, stream messages, record outputs.
 
 Input bags carry the estimator's input topics (see :mod:`msg_adapters.inputs`):

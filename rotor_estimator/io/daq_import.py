@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """DAQ recordings (CSV, NPZ, HDF5) -> a validated :class:`RigRecording`, refusing what would be wrong.
 
 Pure core: no ROS, no bag library (``rotor-estimator import`` writes the bag with :mod:`bagio`).

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``estimator_node``: the live bearing-coefficient estimator (thin rclpy shell).
 
 Declares its parameters (all in :data:`PARAMETERS`, documented in ``config/estimator.yaml``),

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Messages <-> :class:`~rotor_estimator.core.pipeline.EstimatorPipeline`, shared by the node and replay.
 
 No rclpy import here: the same functions run on rclpy messages (live node) and on

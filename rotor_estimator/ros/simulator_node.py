@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``simulator_node``: publishes the estimator's input topics from the model or from a bag.
 
 * ``mode: simulate`` (default): simulates the rig (default: the bundled seed rig, the paper's

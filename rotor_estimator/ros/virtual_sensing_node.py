@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``virtual_sensing_node``: live virtual sensing (thin rclpy shell).
 
 Declares its parameters (all in :data:`PARAMETERS`, with unit and default), subscribes to

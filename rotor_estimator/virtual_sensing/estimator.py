@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Virtual sensing: vibration at stations without a sensor, with honest 95% intervals.
 
 * :func:`estimate_stations`: displacement, velocity and acceleration at any axial

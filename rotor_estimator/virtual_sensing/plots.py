@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Figures of a virtual-sensing run (``rotor-estimator virtual-sensing --report DIR``).
 
 * ``orbit_<station>.png``: the estimated displacement orbit at each station over the

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Flexible-rotor model: FE shaft (Timoshenko), disks, bearings, pedestals, modal
 reduction (Neisi et al. 2022, Eqs. 1-10 and Appendix A) and its discrete state space."""
 from rotor_estimator.core.flexible.description import (Bearing, Disk, Material, ModelOptions, Pedestal, RotorDescription, Sensor, ShaftSection,

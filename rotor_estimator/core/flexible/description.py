@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Rotor description file: frozen, validated records of a flexible rotor on bearings.
 
 All quantities are SI and the unit is in every field name. Axial stations

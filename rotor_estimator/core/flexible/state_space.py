@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Discrete state-space model of a (reduced) FE rotor with sensors and virtual stations.
 
 State ``x = T^-1 [q_r, q_r']`` (Eq. 9 in modal coordinates, Appendix A), where the

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind-set generator: realistic caps, redrawn conditions when a capped effect would hide under the noise."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind-benchmark scoring: pairs, controls and the separable-pair split."""
 from __future__ import annotations
 

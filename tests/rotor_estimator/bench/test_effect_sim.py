@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The blind-set simulator: a record is steady running, with no start-up transient left in it."""
 from __future__ import annotations
 

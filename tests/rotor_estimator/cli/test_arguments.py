@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Every ``--seed`` and ``--passes`` of the command line refuses out-of-range values in argparse
 (one error line naming the range, exit 2) instead of a numpy traceback or a zero-pass run."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Properties of the probe/impact alignment queue (rotor_estimator.core.alignment)."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Layering: the numerical core imports no ROS (neither rclpy nor rosbags)."""
 import subprocess
 import sys

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Sim-to-real diagnosis: effect parameter recovery, clean controls, stable ranking, report and CLI."""
 from __future__ import annotations
 

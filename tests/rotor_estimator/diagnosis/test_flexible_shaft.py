@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Coupled flexible-shaft effect: equivalent beam, rigid limit, FE cross-check, self-recovery."""
 from __future__ import annotations
 

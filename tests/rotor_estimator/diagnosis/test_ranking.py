@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Ranking: pairs composed in physical order, unstable starts avoided, both members of a pair found."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Speed-dependent coefficients and non-identical bearings on synthetic data with a known truth."""
 import numpy as np
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The generalized kernels against the core simulator, the core CRLB and the core EKF."""
 
 import numpy as np

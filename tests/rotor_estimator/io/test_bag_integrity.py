@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Nothing read from or written to a bag is lost silently: CRCs, damage detection and localization,
 --salvage, and all-or-nothing writes (no normal-looking partial bag after an error or Ctrl-C)."""
 from __future__ import annotations
