@@ -9,6 +9,8 @@ compiled kernel's update arithmetic.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
@@ -26,7 +28,7 @@ class FilterpyRotorEKF(ExtendedKalmanFilter):
         self.P = np.asarray(p0, dtype=float).copy()
         self.R = np.diag(model.r_var)
         self._h = ref.measurement_matrix(model)
-        self._step_args = None
+        self._step_args: Any = None  # (h, shaft_prev, impact_prev), set by step() before predict()
 
     def predict_x(self, u=0):  # noqa: D401 - filterpy hook
         h, shaft, impact = self._step_args

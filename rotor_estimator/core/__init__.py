@@ -1,3 +1,3 @@
 # Copyright 2026 rotor_estimator developers
 # SPDX-License-Identifier: Apache-2.0
-"""core"""
+"""Numerical core: configuration, model, simulator, filters, tachometer, alignment, pipeline (no ROS)."""

@@ -12,8 +12,6 @@ complement, then the records' information is summed (they are independent).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from rotor_estimator.identification import _kernel

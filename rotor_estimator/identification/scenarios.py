@@ -183,7 +183,8 @@ def dwell(name: str, speeds_rpm: tuple[float, ...], dwell_s: float, *, ramp_s: f
 
 
 def design_from_scenario(rig: RigConfig, scenario: Scenario) -> TestDesign:
-    """The core simulator's :class:`~rotor_estimator.core.simulator.Scenario` as a design (impacts at the rig station)."""
+    """The core simulator's :class:`~rotor_estimator.core.simulator.Scenario` as a design (impacts at the
+    rig station)."""
     w0 = rig.speed_rad_s if scenario.speed_start_rad_s is None else scenario.speed_start_rad_s
     w1 = w0 if scenario.speed_end_rad_s is None else scenario.speed_end_rad_s
     return TestDesign(name=scenario.name, segments=(SpeedSegment(scenario.duration_s, w0, w1),),

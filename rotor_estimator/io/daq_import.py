@@ -175,7 +175,7 @@ def _read_csv(p: Path, what: str, delimiter: str | None) -> dict[str, np.ndarray
     if any(not n for n in names):
         raise InputError(f"{what} file {p}: an empty column name in the header {lines[0]!r} "
                          f"(delimiter {delimiter!r}; choose another with --delimiter)")
-    seen = {}
+    seen: dict[str, int] = {}
     for i, n in enumerate(names):
         if n.lower() in seen:
             raise InputError(f"{what} file {p}: column {n!r} appears twice (columns {seen[n.lower()] + 1} and "

@@ -26,8 +26,8 @@ from scipy.stats import norm
 
 from rotor_estimator.core.errors import ConfigError, InputError
 from rotor_estimator.core.flexible.state_space import FlexibleStateSpace, periodic_steady_state, station_outputs
-from rotor_estimator.core.linear_filters import (ExtendedKalmanFilter, KalmanFilter, LinearGaussianModel, UnscentedKalmanFilter,
-                             single_threaded_blas)
+from rotor_estimator.core.linear_filters import (ExtendedKalmanFilter, KalmanFilter, LinearGaussianModel,
+                                                 UnscentedKalmanFilter, single_threaded_blas)
 from rotor_estimator.core.tachometer import TachometerConfig, shaft_states_from_pulses
 
 __all__ = ["VirtualSensingConfig", "make_filter", "StationEstimate", "estimate_stations", "confidence_ellipse",

@@ -46,7 +46,7 @@ def test_every_seed_and_passes_option_uses_the_range_checked_type():
 def test_out_of_range_value_exits_2_with_one_error_line(capsys, flag, value, message):
     """Each command taking the option exits 2 with '<prog>: error: argument <flag>: <range>' and
     no traceback; 0 and the limits themselves are accepted."""
-    for path, sub, _ in _options(flag):
+    for path, _sub, _ in _options(flag):
         with pytest.raises(SystemExit) as info:
             main([*path, flag, value])
         err = capsys.readouterr().err
