@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -248,7 +249,8 @@ def _names(n: int) -> tuple[str, ...]:
 
 def plan(rig: RigConfig, target: Target, *, coefficients: np.ndarray | None = None,
          designs: list[TestDesign] | None = None, unknown_imbalance: bool = True, bearings16: bool = False,
-         noise_std_m: float | None = None, progress=None, max_decel_rpm_per_s: float | None = None) -> Plan:
+         noise_std_m: float | None = None, progress: Callable[[int], object] | None = None,
+         max_decel_rpm_per_s: float | None = None) -> Plan:
     """Evaluate the candidates and recommend the shortest test meeting ``target``."""
     if coefficients is None:
         if rig.true_coefficients is None:

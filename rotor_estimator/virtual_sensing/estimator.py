@@ -77,7 +77,8 @@ class VirtualSensingConfig:
         return float(norm.ppf(0.5 + 0.5 * self.confidence))
 
 
-def make_filter(model: LinearGaussianModel, x0: np.ndarray, P0: np.ndarray, config: VirtualSensingConfig):
+def make_filter(model: LinearGaussianModel, x0: np.ndarray, P0: np.ndarray,
+                config: VirtualSensingConfig) -> KalmanFilter | ExtendedKalmanFilter | UnscentedKalmanFilter:
     """The configured filter on ``model``; all three share the streaming interface."""
     g = config.gate_probability
     if config.filter == "kf":
@@ -182,7 +183,7 @@ class StationFilter:
         blocks = [station_outputs(ss, pos) for _, pos in self.stations]
         self.C = np.vstack([b[0] for b in blocks])
         self.D = np.vstack([b[1] for b in blocks])
-        self.filter = None
+        self.filter: KalmanFilter | ExtendedKalmanFilter | UnscentedKalmanFilter | None = None
         self.n_samples = 0
 
     @property
