@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """ament_python package that also installs with plain pip on a machine without ROS."""
 import glob
 import os
@@ -16,7 +18,8 @@ setup(
     license="Apache-2.0",
     python_requires=">=3.10",
     packages=find_packages(exclude=["tests", "tests.*"]),
-    package_data={PACKAGE: ["rigs/*.yaml", "rotors/*.yaml"]},
+    # py.typed: both packages ship their annotations (PEP 561), so users' type checkers read them.
+    package_data={PACKAGE: ["rigs/*.yaml", "rotors/*.yaml", "py.typed"], "msg_adapters": ["py.typed"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -55,7 +58,9 @@ setup(
         ],
         # Optional independent cross-check of the finite-element rotor (ROSS 2.3.0 needs plotly<6).
         "ross": ["ross-rotordynamics==2.3.0", "plotly<6"],
-        "test": ["pytest>=7", "pytest-xdist>=3.2"],  # -n 2: the diagnosis tests take minutes each
+        # -n 2: the diagnosis tests take minutes each. ruff and mypy run in tests/test_linters.py and .ci/lint;
+        # minor versions pinned because a new release adds checks (the config is in pyproject.toml).
+        "test": ["pytest>=7", "pytest-xdist>=3.2", "ruff>=0.17,<0.18", "mypy>=2.4,<2.5"],
     },
     zip_safe=True,
     maintainer="rotor_estimator developers",

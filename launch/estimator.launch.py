@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Launch the estimator node with config/estimator.yaml (override with params_file:=...).
 
 ``namespace:=/rig2`` runs it as /rig2/rotor_estimator: the shipped file is keyed ``/**`` so it

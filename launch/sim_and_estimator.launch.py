@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Launch the simulator node (seed rig, imbalance+impact, repeating) and the estimator node.
 
 Arguments: ``rate_factor`` (playback speed), ``bag_path`` (replay this MCAP bag instead of

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Message adapters: ROS messages <-> plain arrays, for rclpy and rosbags message classes alike.
 
 Decoders read fields by name and dispatch on the message type name, so the
@@ -8,10 +10,11 @@ A message of the wrong type raises ``rotor_estimator.core.errors.InputError``.
 """
 from msg_adapters._common import msg_typename, ns_to_sec_nanosec, stamp_to_ns
 from msg_adapters.cloud import cloud_columns, cloud_from_columns
-from msg_adapters.factory import MessageFactory, RclpyFactory, TypestoreFactory, default_typestore, make_header, make_time
-from msg_adapters.inputs import (IMPACT_FIELDS, IMPACT_TYPES, PROBE_FIELDS, PROBE_TYPES, PULSE_TYPES, impact_block_from_msg,
-                     impact_block_to_msg, impact_sample_to_msg, probe_block_from_msg, probe_block_to_msg,
-                     probe_sample_to_msg, pulse_stamp_from_msg, pulse_to_msg)
+from msg_adapters.factory import (MessageFactory, RclpyFactory, TypestoreFactory, default_typestore, make_header,
+                                  make_time)
+from msg_adapters.inputs import (IMPACT_FIELDS, IMPACT_TYPES, PROBE_FIELDS, PROBE_TYPES, PULSE_TYPES,
+                     impact_block_from_msg, impact_block_to_msg, impact_sample_to_msg, probe_block_from_msg,
+                     probe_block_to_msg, probe_sample_to_msg, pulse_stamp_from_msg, pulse_to_msg)
 from msg_adapters.outputs import (COVARIANCE_NAMES, IDENTIFIABILITY_STATUS, INNOVATION_NAMES, NIS_NAMES, SHAFT_NAMES,
                       Coefficients, Covariance, DiagnosticRecord, Diagnostics, Identifiability, Innovation, Nis,
                       Shaft, coefficients_from_msg, identifiability_from_msg, identifiability_to_msg,

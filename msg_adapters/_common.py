@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Shared helpers: message type names, stamps, type checks.
 
 Works on message objects from rclpy (generated classes), rosbags (typestore

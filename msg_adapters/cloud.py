@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``sensor_msgs/msg/PointCloud2`` as columns of numbers, vectorized with numpy.
 
 Fields are located by name; their offset and datatype are read from the message,

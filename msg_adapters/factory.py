@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Message factories: build rclpy messages or rosbags dataclasses with the same encoder code.
 
 Encoders always pass every field (rosbags dataclasses need all of them, nested

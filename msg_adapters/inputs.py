@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Adapters for the estimator's input topics: probes, keyphasor, impact force.
 
 * probes (``/rotor/probe1``, ``/rotor/probe2``): ``geometry_msgs/msg/PointStamped``
@@ -78,7 +80,8 @@ def pulse_stamp_from_msg(msg: Any) -> int:
 
 
 def check_block(stamps_ns: np.ndarray, values: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Validate a block of (N,) integer ns stamps and (N, 2) values; return (uint32 offsets from the first stamp, float64 values)."""
+    """Validate a block of (N,) integer ns stamps and (N, 2) values; return (uint32 offsets from the first
+    stamp, float64 values)."""
     stamps_ns = np.asarray(stamps_ns)
     values = np.asarray(values, dtype=np.float64)
     if stamps_ns.ndim != 1 or stamps_ns.size == 0 or not np.issubdtype(stamps_ns.dtype, np.integer):

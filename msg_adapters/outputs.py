@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Adapters for the estimator's output topics (``sensor_msgs/msg/JointState`` and diagnostics).
 
 Every JointState output is read by ``name``, so a subscriber does not depend on

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Adapters for virtual sensing: multi-sensor input blocks and per-station estimates.
 
 Inputs, one topic per sensor of the rotor description (``/rotor/<sensor_name>``), as

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Default topic names of the estimator's interface (all configurable)."""
 from __future__ import annotations
 

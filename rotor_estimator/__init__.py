@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """rotor_estimator: identify rotor-bearing stiffness and damping while the machine runs.
 
 The numerical core (``config``, ``model``, ``simulator``, ``ekf``, ``crlb``,

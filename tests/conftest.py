@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Shared fixtures: the seed rig and small simulations."""
 import pytest
 

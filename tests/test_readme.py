@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The README's Python example runs as printed (docs that cannot drift from the API)."""
 import re
 import subprocess

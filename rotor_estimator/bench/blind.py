@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind withheld-effect cases: records with zero, one or two hidden effects, labels kept apart.
 
 Each case draws a speed (8-24 krpm), probe noise (0.5-2 um), 1-3 hammer impacts (200-600 N,
@@ -239,7 +241,8 @@ def calibrate(rig, scenario, names, rng, target_rms_m, *, prior_coefficients=Non
 #: unbalance 10 x 5 g mm, keyphasor offset 30 x 0.05 rad (1.5 rad: a misplaced mark), runout 20 x 0.5 um
 #: per harmonic, misalignment 20 x 10 N, gain 10 x 2 % and orientation 10 x 1.1 deg (uncalibrated target
 #: material, a loosely clamped probe), skew 34 x 3 us (~100 us, two samples of a sequential DAQ), cubic
-#: stiffness 3e3 x 1e13 N/m^3 (and at most :data:`CUBIC_TANGENT_RATIO_CAP`), a bending mode down to 120 Hz (strength (2500/120)^2). A case whose
+#: stiffness 3e3 x 1e13 N/m^3 (and at most :data:`CUBIC_TANGENT_RATIO_CAP`), a bending mode down to 120 Hz
+#: (strength (2500/120)^2). A case whose
 #: intended gap needs more keeps the cap: its realized gap is then smaller than intended (the benchmark
 #: scores the realized one).
 STRENGTH_CAP = {"residual_unbalance": 10.0, "tach_offset": 30.0, "probe_runout": 20.0, "misalignment": 20.0,
@@ -253,7 +256,8 @@ CUBIC_TANGENT_RATIO_CAP = 0.5
 
 
 def _cubic_cap(ctx: dict, coefficients: np.ndarray, clean_probes_m: np.ndarray) -> float:
-    """Strength at which the cubic term reaches :data:`CUBIC_TANGENT_RATIO_CAP` in x or y (from the effect-free orbit)."""
+    """Strength at which the cubic term reaches :data:`CUBIC_TANGENT_RATIO_CAP` in x or y (from the
+    effect-free orbit)."""
     rms = np.sqrt(np.mean((clean_probes_m - clean_probes_m.mean(axis=0)) ** 2, axis=0))
     x_rms, y_rms = max(rms[0], rms[2]), max(rms[1], rms[3])
     caps = [CUBIC_TANGENT_RATIO_CAP * abs(coefficients[i]) / (3 * x * x * 1e13 * k3)
@@ -435,7 +439,8 @@ def write_blind_set(out_dir: str | Path, n_cases: int = 40, seed: int = 2024, *,
             ross_cases = rc.plan(n_cases, seed)
     own = plan(n_cases, seed, n_ross=len(ross_cases))
     tasks = [(_make_own_case, a) for a in own]
-    tasks += [(_make_ross_case, (f"case_{len(own) + i:03d}", names, s, kw)) for i, (names, s, kw) in enumerate(ross_cases)]
+    tasks += [(_make_ross_case, (f"case_{len(own) + i:03d}", names, s, kw))
+              for i, (names, s, kw) in enumerate(ross_cases)]
 
     def _store(c: BlindCase) -> None:
         d = out / "cases" / c.case_id

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """What a blind diagnosis case is, and the pieces both blind generators share (impacts, the
 nominal-fit proxy of a case's gap)."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind benchmark of the diagnosis: generate a fresh withheld-effect set, diagnose, then score.
 
 The diagnosis step reads only ``cases/<id>/recording.npz`` and ``rig.yaml``; the labels
@@ -107,7 +109,8 @@ def format_score(s: dict) -> str:
     cm = s["confusion"]
     short = {v: v[:10] for v in cm["verdicts"]}
     w = max(len(t) for t in cm["truths"]) + 2
-    out = ["Confusion matrix (rows: hidden effect(s); columns: verdict)", " " * w + " ".join(f"{short[v]:>10s}" for v in cm["verdicts"])]
+    out = ["Confusion matrix (rows: hidden effect(s); columns: verdict)",
+           " " * w + " ".join(f"{short[v]:>10s}" for v in cm["verdicts"])]
     for t, row in zip(cm["truths"], cm["counts"]):
         out.append(f"{t:<{w}s}" + " ".join(f"{c:>10d}" for c in row))
     out += ["", f"cases {s['cases']} (controls {s['controls']}, clear gap >= 1.5x: {s['n_clear_gap']}, "

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Effect-aware data simulator: the rig of Eq. 2 plus any of the hidden effects, for blind tests.
 
 Independent of the diagnosis's numerics on purpose: fixed-step RK4 on a grid
@@ -102,7 +104,7 @@ class EffectScenario:
     lead_in_s: float
     impacts: tuple[Impact, ...]
     noise_std_m: float
-    coefficients: np.ndarray = field(repr=False, default=None)
+    coefficients: np.ndarray | None = field(repr=False, default=None)
     substeps: int = 4
 
 
@@ -237,7 +239,8 @@ def simulate_with_effects(rig: RigConfig, scenario: EffectScenario, effects: Hid
         planes.append([u.moment_kg_m, u.phase_rad, w1, w2, float(models.mode_shape(rig, u.axial_position_m))])
     ru = effects.residual_unbalance_kg_m
     positions = sorted({u.axial_position_m for u in rig.imbalances})
-    s1, s2 = (positions[0], positions[-1]) if len(positions) >= 2 else (rig.bearing1_position_m, rig.bearing2_position_m)
+    s1, s2 = ((positions[0], positions[-1]) if len(positions) >= 2
+              else (rig.bearing1_position_m, rig.bearing2_position_m))
     for s, c, si in ((s1, ru[0], ru[1]), (s2, ru[2], ru[3])):
         if c or si:
             w1, w2 = point_force_weights(rig, s)
@@ -258,7 +261,8 @@ def simulate_with_effects(rig: RigConfig, scenario: EffectScenario, effects: Hid
         np.array([lead + i.start_s for i in imp]), np.array([lead + i.start_s + i.duration_s for i in imp]),
         np.array([i.force_x_n for i in imp]), np.array([i.force_y_n for i in imp]))
     hp = mats.probe_from_bearing
-    phi_p = np.array([models.mode_shape(rig, rig.probe1_position_m)] * 2 + [models.mode_shape(rig, rig.probe2_position_m)] * 2)
+    phi_p = np.array([models.mode_shape(rig, rig.probe1_position_m)] * 2
+                     + [models.mode_shape(rig, rig.probe2_position_m)] * 2)
     pos = states[:, 4:8] @ hp.T + phi_p * np.tile(states[:, 18:20], 2)
     vel = states[:, 0:4] @ hp.T + phi_p * np.tile(states[:, 16:18], 2)
     t_all = np.arange(n) * dt
@@ -272,7 +276,8 @@ def simulate_with_effects(rig: RigConfig, scenario: EffectScenario, effects: Hid
         u = (np.arange(n) - shift) - k0  # fraction in [0,1] from k0 toward k0+1
         k0 = np.clip(k0, 0, n - 2)
         p0, p1, m0, m1 = pos[k0, c], pos[k0 + 1, c], vel[k0, c] * dt, vel[k0 + 1, c] * dt
-        h00, h10, h01, h11 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u, -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
+        h00, h10, h01, h11 = (2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u,
+                              -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2)
         y[:, c] = h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1
     theta = scenario.speed_rad_s * t_all
     if len(effects.runout_m):
@@ -292,7 +297,8 @@ def simulate_with_effects(rig: RigConfig, scenario: EffectScenario, effects: Hid
     t_rec = t_all[n_lead:] - lead
     # keyphasor: true angle = offset + 2 pi k
     first_k = math.ceil((scenario.speed_rad_s * lead - effects.tach_offset_rad) / (2 * math.pi)) - 1
-    last_k = math.floor((scenario.speed_rad_s * (lead + scenario.duration_s) - effects.tach_offset_rad) / (2 * math.pi)) + 1
+    last_k = math.floor((scenario.speed_rad_s * (lead + scenario.duration_s) - effects.tach_offset_rad)
+                        / (2 * math.pi)) + 1
     kk = np.arange(first_k, last_k + 1)
     pulses = (effects.tach_offset_rad + 2 * math.pi * kk) / scenario.speed_rad_s - lead
     force = np.zeros((n_rec, 2))

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The same EKF written the straightforward way with filterpy's ``ExtendedKalmanFilter``.
 
 Prediction uses the numpy reference RK4 step and its Jacobian
@@ -6,6 +8,8 @@ Joseph-form update. This is the speed baseline and an independent check of the
 compiled kernel's update arithmetic.
 """
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
@@ -24,7 +28,7 @@ class FilterpyRotorEKF(ExtendedKalmanFilter):
         self.P = np.asarray(p0, dtype=float).copy()
         self.R = np.diag(model.r_var)
         self._h = ref.measurement_matrix(model)
-        self._step_args = None
+        self._step_args: Any = None  # (h, shaft_prev, impact_prev), set by step() before predict()
 
     def predict_x(self, u=0):  # noqa: D401 - filterpy hook
         h, shaft, impact = self._step_args

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Front-end cost per sample (probe-plane alignment, keyphasor angle query, probe-block message
 encode + decode), each as a ratio to the EKF's own cost per sample measured in the same process.
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator bench identification``: every method on every scenario against the CRLB.
 
 Each run simulates the scenario with the core simulator (its own noise seed), reads the
@@ -12,6 +14,7 @@ from __future__ import annotations
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -35,7 +38,8 @@ class BenchScenario:
 
 
 def scenarios() -> tuple[BenchScenario, ...]:
-    sweep = dict(impacts=(), speed_start_rad_s=20000 * RPM, speed_end_rad_s=3000 * RPM, discard_initial_s=0.01)
+    sweep: dict[str, Any] = dict(impacts=(), speed_start_rad_s=20000 * RPM, speed_end_rad_s=3000 * RPM,
+                                 discard_initial_s=0.01)
     # the paper's 515 N, 50 us hit, alternating -y and -x, every 0.2 s from 40 ms
     five = tuple(Impact(0.04 + 0.2 * i, 50e-6, *((0.0, -515.0) if i % 2 == 0 else (-515.0, 0.0)))
                  for i in range(5))

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator bench live``: the estimator node through real rclpy, in one process.
 
 A publisher (its own executor thread, publishing from a third thread on wall-clock due
@@ -71,7 +73,7 @@ def _step(est: EstimatorNode, bench, pubs, rate_hz: float, step_s: float, rig, e
                                          est.pipeline.publish_period_ns * 1e-9, options=est.pipeline.options)
     bench["received"].clear()
     bench["diag"].clear()
-    pub_time = {1: {}, 2: {}}
+    pub_time: dict[int, dict[int, int]] = {1: {}, 2: {}}
     published = 0
     lead = min(i[0] for i in items) - 30_000_000
     for due, plane, msg in items:
@@ -124,13 +126,16 @@ def run(step_s: float = 3.0, rates_hz: tuple[float, ...] = (5e3, 1e4, 2e4, 4e4, 
         bench_node = rclpy.create_node("rotor_bench", context=ctx)
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
         fac = ma.RclpyFactory()
-        pubs = {1: bench_node.create_publisher(fac.message_class("sensor_msgs/msg/PointCloud2"), est.topics.probe1, qos),
-                2: bench_node.create_publisher(fac.message_class("sensor_msgs/msg/PointCloud2"), est.topics.probe2, qos),
-                0: bench_node.create_publisher(fac.message_class("sensor_msgs/msg/TimeReference"), est.topics.keyphasor, qos)}
+        cloud = fac.message_class("sensor_msgs/msg/PointCloud2")
+        time_ref = fac.message_class("sensor_msgs/msg/TimeReference")
+        pubs = {1: bench_node.create_publisher(cloud, est.topics.probe1, qos),
+                2: bench_node.create_publisher(cloud, est.topics.probe2, qos),
+                0: bench_node.create_publisher(time_ref, est.topics.keyphasor, qos)}
         state: dict[str, list] = {"received": [], "diag": []}
         clock = bench_node.get_clock()
         bench_node.create_subscription(
-            fac.message_class("sensor_msgs/msg/JointState"), ma.output_topic(ma.COEFFICIENTS_TOPIC, est.get_fully_qualified_name()),
+            fac.message_class("sensor_msgs/msg/JointState"),
+            ma.output_topic(ma.COEFFICIENTS_TOPIC, est.get_fully_qualified_name()),
             lambda m: state["received"].append((clock.now().nanoseconds, ma.stamp_to_ns(m.header.stamp))), 1000)
 
         def on_diag(m: Any) -> None:

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Plain-numpy reference of one EKF step, written with whole matrices for reading and checking.
 
 This is the same discrete model as the compiled kernel (RK4 step of Eq. 12, its exact
@@ -55,7 +57,8 @@ def rk4_step(model: FilterModel, x: np.ndarray, h: float, angle0: float, omega0:
     lift[:, :8] = np.eye(8)
     r_cols = np.zeros((8, 16))
     q0 = x[:8]
-    ks, dks = [], []
+    ks: list[np.ndarray] = []
+    dks: list[np.ndarray] = []
     for c, tc in ((0.0, 0.0), (0.5, 0.5), (0.5, 0.5), (1.0, 1.0)):
         q = q0 + c * h * (ks[-1] if ks else 0.0)
         dq = lift + c * h * (dks[-1] if dks else r_cols)

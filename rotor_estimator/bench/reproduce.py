@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Reproduction of Miller & Howard's Table 3 (and the imbalance-only case), with the CRLB.
 
 Each run simulates the paper's protocol with its own noise seed, tracks the shaft

@@ -1,8 +1,11 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind cases from ROSS (``ross-rotordynamics`` 2.3.0, optional extra): an independent FE simulator.
 
 ROSS builds a Timoshenko finite-element rotor (6 DOF per node) with its own bearing,
 disk and point-mass elements and integrates it with ``Rotor.time_response``
-(``scipy.signal.lsim`` of its own state-space model, started from the periodic unbalance response). Nothing here reuses this package's
+(``scipy.signal.lsim`` of its own state-space model, started from the periodic unbalance response).
+Nothing here reuses this package's
 model, so a case generated here tests the diagnosis on dynamics it did not write:
 
 * ``shaft_bending``: a slender shaft (d = 20-26 mm) whose bending flexibility is real
@@ -78,7 +81,8 @@ def _build(diameter_m: float, r: np.ndarray, pedestal: tuple[float, float, float
     import io
 
     rs = _import_ross()
-    with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+    with (warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()),
+          contextlib.redirect_stderr(io.StringIO())):
         warnings.simplefilter("ignore")
 
         steel = rs.Material(name="steel_diag", rho=RHO, E=E, G_s=G)
@@ -113,10 +117,11 @@ def rig_from_geometry(diameter_m: float, speed_rad_s: float, noise_std_m: float)
     pos = lambda n: float(s_nodes[n] - cg)  # noqa: E731
     base = load_rig_file().rig
     imb = tuple(Imbalance(u.mass_kg, u.radius_m, u.phase_rad, pos(n)) for u, n in zip(base.imbalances, IMBALANCE_NODES))
-    return RigConfig(name=f"ross_fe_d{diameter_m * 1e3:.0f}mm", shaft_mass_kg=float(m_tot), polar_inertia_kg_m2=float(ip),
-                     transverse_inertia_kg_m2=float(it), bearing1_position_m=pos(BEARING_NODES[0]),
-                     bearing2_position_m=pos(BEARING_NODES[1]), probe1_position_m=pos(PROBE_NODES[0]),
-                     probe2_position_m=pos(PROBE_NODES[1]), impact_position_m=pos(IMPACT_NODE), imbalances=imb,
+    return RigConfig(name=f"ross_fe_d{diameter_m * 1e3:.0f}mm", shaft_mass_kg=float(m_tot),
+                     polar_inertia_kg_m2=float(ip), transverse_inertia_kg_m2=float(it),
+                     bearing1_position_m=pos(BEARING_NODES[0]), bearing2_position_m=pos(BEARING_NODES[1]),
+                     probe1_position_m=pos(PROBE_NODES[0]), probe2_position_m=pos(PROBE_NODES[1]),
+                     impact_position_m=pos(IMPACT_NODE), imbalances=imb,
                      speed_rad_s=speed_rad_s, sample_rate_hz=base.sample_rate_hz, noise_std_m=noise_std_m).validate()
 
 
@@ -190,7 +195,7 @@ def simulate_ross(diameter_m: float, r: np.ndarray, speed_rad_s: float, impacts:
 def plan(n_cases: int, seed: int) -> list[tuple[tuple[str, ...], int, dict]]:
     """ROSS share of a blind set: a control, two flexible shafts and a pedestal (about 10 %)."""
     rng = np.random.default_rng(seed + 77)
-    out = [((), seed * 1000 + 900, {"diameter_m": 0.05}),
+    out: list[tuple[tuple[str, ...], int, dict]] = [((), seed * 1000 + 900, {"diameter_m": 0.05}),
            (("shaft_bending",), seed * 1000 + 901, {"diameter_m": float(rng.uniform(0.020, 0.024))}),
            (("pedestal",), seed * 1000 + 902, {"diameter_m": 0.05, "pedestal": "auto"})]
     if n_cases >= 36:
@@ -207,7 +212,8 @@ PEDESTAL_REDRAWS = 4
 
 def _pedestal_for_gap(diameter_m, r, speed, impacts, duration, noise_std_m, mass_kg, damping_ratio, target_gap,
                       base) -> tuple[tuple[float, float, float], float]:
-    """The pedestal (mass, stiffness, damping) of :data:`PEDESTAL_FREQUENCIES_HZ` whose gap is nearest ``target_gap``, and that gap.
+    """The pedestal (mass, stiffness, damping) of :data:`PEDESTAL_FREQUENCIES_HZ` whose gap is nearest
+    ``target_gap``, and that gap.
 
     The gap of each candidate is ``sqrt(1 + (a / noise)^2)`` with ``a`` the RMS a noise-free ROSS
     record leaves after the diagnosis's own nominal fit (:func:`.blind.nominal_unabsorbed_rms`),

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator bench speed``: our EKF against a filterpy EKF of the same model, same process.
 
 Timings are reported as measured and as a ratio (speedup) of two runs in the same

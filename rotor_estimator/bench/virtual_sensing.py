@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Paper-scale virtual-sensing benchmark (Neisi et al. 2022: UKF, 150 states, 8 observations, 8192 samples)."""
 from __future__ import annotations
 
@@ -25,7 +27,7 @@ def bench_virtual_sensing(samples: int = 8192, seed: int = 0, alpha: float = 0.0
     sim = simulate(ss, samples, seed=seed)
     acc = [j for j, unit in enumerate(ss.channel_units) if unit == "m/s^2"]
     m = ss.model
-    m8 = LinearGaussianModel(m.F, m.Q, m.H[acc], m.R[np.ix_(acc, acc)], m.B, m.D[acc])
+    m8 = LinearGaussianModel(m.F, m.Q, m.H[acc], m.R[np.ix_(acc, acc)], m.B, None if m.D is None else m.D[acc])
     x0 = periodic_steady_state(ss)
     t0 = time.perf_counter()
     ukf = UnscentedKalmanFilter.from_linear(m8, x0, ss.P0, alpha, beta, kappa).run(sim.z[:, acc], sim.u)

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Process-pool workers of the benchmarks."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """What the commands share: argparse ``type=`` callables that refuse out-of-range numbers with a message
 naming the range, the bag argument, and the progress bar.
 
@@ -11,6 +13,9 @@ import argparse
 import sys
 from typing import Any, Callable
 
+#: Help of --salvage, the same for every command that reads a bag.
+SALVAGE_HELP = ("use the intact part of a damaged bag (the messages lost are counted and reported on stderr); "
+                "without it a damaged bag is an error")
 #: Seeds are non-negative (numpy's SeedSequence refuses negatives); 32 bits, as numpy's legacy seeding.
 SEED_MAX = 2**32 - 1
 #: EstimatorConfig.passes allows 1 to 20 (config.EstimatorConfig.validate).

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator bench ...``: the benchmarks that print figures (speed, live nodes, diagnosis,
 identification, virtual sensing). Each handler is a thin shell over :mod:`rotor_estimator.bench`."""
 from __future__ import annotations

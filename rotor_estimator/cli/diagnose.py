@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator diagnose BAG --rig RIG [--report DIR] [--json]`` and ``bench diagnosis``.
 
 Reading bags goes through :mod:`rotor_estimator.io.bags` here only (the diagnosis core imports
@@ -52,7 +54,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         print(f"gap: residual RMS {summary['residual_rms_before'] * 1e6:.3f} um = {w['gap_ratio']:.2f} x noise; "
               f"dominant channel {w['dominant_channel']}, band {w['dominant_band']}")
         print(f"after: {summary['residual_rms_after'] * 1e6:.3f} um, shrink ratio {summary['shrink_ratio']:.2f}")
-        print("ranking (delta BIC): " + ", ".join(f"{r['effect']} {r['delta_bic']:.0f}" for r in summary["ranking"][:4]))
+        ranking = ", ".join(f"{r['effect']} {r['delta_bic']:.0f}" for r in summary["ranking"][:4])
+        print("ranking (delta BIC): " + ranking)
         if args.report:
             print(f"report written to {args.report}/report.md")
     return 0
@@ -65,7 +68,7 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser("diagnose", help="diagnose the sim-to-real gap of a recording (where, which effect, "
                                                "how far it shrinks)")
     add_bag_argument(p, "input bag (rosbag2 MCAP, e.g. from `rotor-estimator import`) or .npz")
-    p.add_argument("--salvage", action="store_true", help="use the intact part of a damaged bag (the messages lost are counted and reported on stderr); without it a damaged bag is an error")
+    p.add_argument("--salvage", action="store_true", help=cli_types.SALVAGE_HELP)
     p.add_argument("--rig", type=Path, required=True, help="rig YAML (bearing coefficients are estimated)")
     p.add_argument("--report", metavar="DIR", default=None, help="write report.md, summary.json and PNGs to DIR")
     p.add_argument("--json", action="store_true", help="print the JSON summary")

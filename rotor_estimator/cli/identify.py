@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator identify``: the coefficients from one or several bags (or a simulated test), with the
 identifiability report and the fit quality. Thin shell over :mod:`rotor_estimator.identification`;
 heavy imports inside the handler."""
@@ -204,7 +206,7 @@ def add_parser(subparsers: Any) -> None:
     src.add_argument("--bag", type=Path, action="append",
                      help="input bag (probe, keyphasor and impact topics); repeat for several records fitted "
                           "together (batch ML)")
-    i.add_argument("--salvage", action="store_true", help="use the intact part of a damaged bag (the messages lost are counted and reported on stderr); without it a damaged bag is an error")
+    i.add_argument("--salvage", action="store_true", help=cli_types.SALVAGE_HELP)
     src.add_argument("--simulate", metavar="SCENARIO",
                      help="simulate a benchmark scenario: imbalance+impact, imbalance, cd0.5, cd2, 5imp")
     i.add_argument("--seed", type=cli_types.seed, default=1)

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator import``: a DAQ recording (CSV, NPZ, HDF5) as an input bag.
 
 A thin shell over :mod:`rotor_estimator.io.daq_import`: everything is read and validated before the
@@ -73,7 +75,8 @@ def cmd_import(args: argparse.Namespace) -> int:
                           probe_angles_deg=_angles(args.probe_angles_deg), time_offset_s=args.time_offset_s,
                           tach_threshold_v=args.tach_threshold_v, tach_hysteresis_v=args.tach_hysteresis_v,
                           rig_sample_rate_hz=rig.sample_rate_hz,
-                          rig_speed_range_rad_s=(TachometerConfig().min_speed_rad_s, max_speed_for_rig(rig.speed_rad_s)))
+                          rig_speed_range_rad_s=(TachometerConfig().min_speed_rad_s,
+                                                  max_speed_for_rig(rig.speed_rad_s)))
     table = read_table(args.signals, "SIGNALS", delimiter=args.delimiter, hdf5_group=args.hdf5_group)
     pulses = None
     if args.tach is not None:

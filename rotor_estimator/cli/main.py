@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator``: the command-line entry point (argparse, one handler per subcommand).
 
 Every subcommand is a thin shell over library functions; heavy imports happen inside

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator plan``: the excitation planner (CRLB of candidate tests, the shortest one meeting a target),
 printing the `simulate` and `identify` command lines of the recommended test."""
 from __future__ import annotations

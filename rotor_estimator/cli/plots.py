@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Figures (matplotlib, Agg backend). Reporting only: nothing here feeds back into the core."""
 from __future__ import annotations
 

@@ -1,4 +1,7 @@
-"""``rotor-estimator replay``: runs the estimator node's logic (:class:`~rotor_estimator.core.pipeline.EstimatorPipeline`
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
+"""``rotor-estimator replay``: runs the estimator node's logic
+(:class:`~rotor_estimator.core.pipeline.EstimatorPipeline`
 after :func:`~rotor_estimator.ros.pipeline_io.feed_message`) over a bag message by message, with no
 ROS graph, and can write the node's output topics into a new MCAP bag. With ``passes: 2``
 in the rig file (the seed rig's setting) it runs the paper's multi-pass use: pass 2 starts
@@ -14,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 
+from rotor_estimator.cli import arguments as cli_types
 from rotor_estimator.cli.arguments import add_bag_argument, bag_from_args
 from rotor_estimator.core.errors import BagError, InputError, NoDataError
 from rotor_estimator.core.identifiability import NOT_DETERMINED
@@ -44,7 +48,8 @@ def replay_bag(bag: str | Path, rig_path: str | Path | None = None, out_bag: str
     topics = ma.DEFAULT_INPUT_TOPICS
     damage = bag_damage(bag) if salvage else None
     available = bag_topics(bag) if damage is None else None
-    missing = [t for t in (topics.probe1, topics.probe2, topics.keyphasor) if available is not None and t not in available]
+    missing = [t for t in (topics.probe1, topics.probe2, topics.keyphasor)
+               if available is not None and t not in available]
     if missing:
         raise BagError(f"bag {bag} lacks input topic(s) {missing}; it has {sorted(available)}")
     if out_bag is not None and Path(out_bag).exists():
@@ -187,7 +192,7 @@ def add_parser(subparsers: Any) -> None:
                    help="estimates per second of sample time written to --out and --csv (default 200)")
     p.add_argument("--csv", type=Path, default=None, metavar="FILE",
                    help="write the coefficient history (time_s, each coefficient and its std, NIS) as CSV")
-    p.add_argument("--salvage", action="store_true", help="use the intact part of a damaged bag (the messages lost are counted and reported on stderr); without it a damaged bag is an error")
+    p.add_argument("--salvage", action="store_true", help=cli_types.SALVAGE_HELP)
     p.add_argument("--json", action="store_true", help="print JSON (SI units)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_replay)

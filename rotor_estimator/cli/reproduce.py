@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator reproduce miller-howard``: Table 3 of Miller & Howard, side by side with ours and the CRLB."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator simulate``: simulated input topics (the paper's cases, a ramp, a `plan` design) to an MCAP bag."""
 from __future__ import annotations
 
@@ -46,7 +48,8 @@ def _simulate_design(args: argparse.Namespace, rig) -> int:
     write_input_bag(args.out, rec, block_size=args.block_size)
     weight = design.trial_weights[args.record - 1] if args.record else None
     print(f"wrote {args.out}: record {args.record} of '{design.name}' ({len(rec)} samples"
-          + (f", trial weight {weight.mass_kg * 1e3:.4g} g at {weight.radius_m * 1e3:.4g} mm, plane {weight.plane + 1}, "
+          + (f", trial weight {weight.mass_kg * 1e3:.4g} g at {weight.radius_m * 1e3:.4g} mm, "
+             f"plane {weight.plane + 1}, "
              f"{np.degrees(weight.phase_rad):.0f} deg" if weight else "") + ")")
     return 0
 

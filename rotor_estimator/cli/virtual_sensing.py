@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Command-line wiring for virtual sensing (argparse; no ROS).
 
 ``rotor-estimator virtual-sensing``: leave-one-station-out validation on a bundled
@@ -26,7 +28,8 @@ from rotor_estimator.io.safe_write import save_npz
 from rotor_estimator.core.flexible.description import load_rotor_description
 from rotor_estimator.core.flexible.state_space import (FlexibleStateSpace, build_state_space, simulate,
                                    station_outputs, unbalance_inputs)
-from rotor_estimator.virtual_sensing.estimator import (FILTERS, VirtualSensingConfig, estimate_stations, leave_one_station_out,
+from rotor_estimator.virtual_sensing.estimator import (FILTERS, VirtualSensingConfig, estimate_stations,
+                                                       leave_one_station_out,
                               resolve_stations, shaft_angle_from_pulses)
 
 __all__ = ["add_parser", "run_virtual_sensing", "load_npz_channels", "load_bag_channels", "pulses_from_inputs"]
@@ -68,8 +71,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--write-input-bag", type=Path, metavar="OUT",
                    help="also write the input data (channels and keyphasor pulses at the shaft angle's zero "
                         "crossings) as a multi-sensor bag, e.g. to replay it to virtual_sensing_node")
-    p.add_argument("--out", "--out-bag", dest="out_bag", type=Path, metavar="OUT", help="write station estimates (and leave-one-out "
-                                                                "predictions) as topics to a new MCAP bag")
+    p.add_argument("--out", "--out-bag", dest="out_bag", type=Path, metavar="OUT",
+                   help="write station estimates (and leave-one-out predictions) as topics to a new MCAP bag")
     p.add_argument("--strict", action="store_true", help="exit 1 when a coverage is off by more than the tolerance")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=run_virtual_sensing)

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """One time-ordering queue for N named sample streams (robot_localization style, no ROS).
 
 :class:`StreamAligner` takes blocks of named streams of fixed width (probe planes, sensors),

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Rig and estimator configuration: frozen, typed dataclasses validated at load.
 
 All quantities are SI. Axial positions are signed coordinates along the shaft,
@@ -202,7 +204,8 @@ class RigConfig:
         p = "rig"
         number_field(self.shaft_mass_kg, f"{p}.shaft.mass_kg", "kg", low=0.0, low_open=True)
         number_field(self.polar_inertia_kg_m2, f"{p}.shaft.polar_inertia_kg_m2", "kg*m^2", low=0.0)
-        number_field(self.transverse_inertia_kg_m2, f"{p}.shaft.transverse_inertia_kg_m2", "kg*m^2", low=0.0, low_open=True)
+        number_field(self.transverse_inertia_kg_m2, f"{p}.shaft.transverse_inertia_kg_m2", "kg*m^2", low=0.0,
+                     low_open=True)
         if not self.bearing1_position_m < self.bearing2_position_m:
             raise ConfigError(f"{p}.bearings: bearing1.axial_position_m ({self.bearing1_position_m:g} m) must be "
                               f"less than bearing2.axial_position_m ({self.bearing2_position_m:g} m)")
@@ -255,8 +258,10 @@ class EstimatorConfig:
                 raise ConfigError(f"{p}.coefficient_random_walk.{name}: must be >= 0, got {value:g}")
         number_field(self.initial_displacement_std_m, f"{p}.initial_displacement_std_m", "m", low=0.0, low_open=True)
         number_field(self.initial_velocity_std_m_s, f"{p}.initial_velocity_std_m_s", "m/s", low=0.0, low_open=True)
-        number_field(self.measurement_noise_std_m, f"{p}.measurement_noise_std_m", "m", low=0.0, low_open=True, high=1e-2)
-        number_field(self.motion_process_noise_accel_m_s2, f"{p}.motion_process_noise_accel_m_s2", "m/s^2/sqrt(Hz)", low=0.0)
+        number_field(self.measurement_noise_std_m, f"{p}.measurement_noise_std_m", "m", low=0.0, low_open=True,
+                     high=1e-2)
+        number_field(self.motion_process_noise_accel_m_s2, f"{p}.motion_process_noise_accel_m_s2", "m/s^2/sqrt(Hz)",
+                     low=0.0)
         number_field(self.innovation_gate_nis, f"{p}.innovation_gate_nis", "(dimensionless)", low=1.0)
         if not isinstance(self.passes, int) or isinstance(self.passes, bool) or not 1 <= self.passes <= 20:
             raise ConfigError(f"{p}.passes: must be an integer from 1 to 20, got {self.passes!r}")
@@ -333,7 +338,8 @@ def rig_from_mapping(data: Mapping[str, Any], path: str = "rig") -> RigConfig:
                             "rpm", low=0.0, high=1e6) * 2.0 * math.pi / 60.0,
         sample_rate_hz=number_field(get_field(operating, "sample_rate_hz", f"{path}.operating"),
                                f"{path}.operating.sample_rate_hz", "Hz", low=1.0, high=1e7),
-        noise_std_m=number_field(get_field(operating, "noise_std_m", f"{path}.operating"), f"{path}.operating.noise_std_m",
+        noise_std_m=number_field(get_field(operating, "noise_std_m", f"{path}.operating"),
+                                 f"{path}.operating.noise_std_m",
                             "m", low=0.0, high=1e-2),
         true_coefficients=true_coefficients,
     )

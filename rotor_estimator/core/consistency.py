@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Does the model fit the data? Streaming consistency statistics of a Kalman filter's innovations.
 
 A filter whose model matches the rig has innovations that are zero-mean, white and of the

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Cramér-Rao lower bound of the bearing coefficients from the samples actually used.
 
 For Gaussian measurement noise ``y_k = H z_k(theta) + v_k``, ``v_k ~ N(0, R)``, the

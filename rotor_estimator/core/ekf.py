@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Streaming continuous-discrete EKF for the 8 bearing coefficients (Miller & Howard, Eqs. 7-17).
 
 State ``s = [v (4), z (4), r (8)]``: bearing-center velocities and displacements and the

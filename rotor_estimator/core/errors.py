@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Package exceptions, one place (rosbags style). Each message says what to do."""
 
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The compiled EKF kernel (Miller & Howard Eqs. 9-17), shared by the streaming EKF and identification.
 
 Building blocks, one copy each:

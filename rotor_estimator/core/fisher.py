@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Cramer-Rao bounds from a Fisher information matrix: inversion with unidentified directions
 made explicit, and elimination of nuisance parameters (Schur complement)."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Compiled pieces of the rigid model (Eqs. 3 and 5) shared by the simulator, the EKF kernels and the
 diagnosis's effect simulator: one copy of the imbalance force, of the impact force held over an
 integration substep and of the rigid state derivative."""

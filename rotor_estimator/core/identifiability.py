@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Which coefficients the data actually received determine, and how well.
 
 Input: the Fisher information the data carried about the coefficients (from a batch

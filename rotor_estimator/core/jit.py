@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Optional numba JIT: compiled when numba is importable, plain Python otherwise.
 
 numba is a declared dependency; the fallback only keeps the package importable

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Kalman filter, EKF and vectorized UKF with one streaming interface.
 
 Model (discrete time, sample k)::

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Rigid rotor on two identical linear bearings (Miller & Howard, Eqs. 1-6).
 
 Coordinates ``z = [x1, y1, x2, y2]`` are the shaft displacements at the two bearing

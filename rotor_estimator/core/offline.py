@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Run the EKF over a whole recording held in memory (arrays, no ROS).
 
 Used by the reproduction, the benchmarks and the diagnosis. Bags go through
@@ -7,6 +9,7 @@ alignment in front of the same :class:`~rotor_estimator.core.ekf.StreamingEKF`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,6 +17,9 @@ from rotor_estimator.core.config import EstimatorConfig, RigConfig
 from rotor_estimator.core.ekf import BlockResult, StreamingEKF
 from rotor_estimator.core.errors import InputError
 from rotor_estimator.core.recording import RigRecording
+
+if TYPE_CHECKING:
+    from rotor_estimator.core.tachometer import TachometerConfig
 
 
 @dataclass
@@ -26,7 +32,7 @@ class ShaftInputs:
     valid: np.ndarray
 
 
-def shaft_inputs_from_recording(recording: RigRecording, tach_config=None, *,
+def shaft_inputs_from_recording(recording: RigRecording, tach_config: TachometerConfig | None = None, *,
                                 running_speed_rad_s: float = 0.0) -> ShaftInputs:
     """Shaft state at every sample from the keyphasor pulses (centered, offline fit); the tracker's
     speed limit follows ``running_speed_rad_s`` (see :func:`tachometer.max_speed_for_rig`)."""

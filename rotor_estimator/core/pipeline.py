@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The estimator node's whole logic on plain arrays (no ROS): ordering, shaft reference, EKF, outputs.
 
 The live node (:mod:`rotor_estimator.ros.estimator_node`) and offline replay
@@ -180,7 +182,9 @@ class Output:
 
 @dataclass(frozen=True)
 class Accounting:
-    """Where every input went. Per plane ``p``::
+    """Where every input went.
+
+    Per plane ``p``::
 
         received_plane{p} == processed + sum(EKF_REJECTIONS) + sum(rejected_*_plane{p}) + pending_plane{p}
 
@@ -335,7 +339,8 @@ class EstimatorPipeline:
             self._events["motion_restarts"] += 1
 
     # ----------------------------------------------------------------- inputs
-    def on_probe_block(self, plane: int, stamps_ns: np.ndarray, xy_m: np.ndarray, arrival_ns: int | None = None) -> None:
+    def on_probe_block(self, plane: int, stamps_ns: np.ndarray, xy_m: np.ndarray,
+                       arrival_ns: int | None = None) -> None:
         """Samples ``xy_m`` (N, 2) [x, y] in m of probe ``plane`` (1 or 2) at integer-ns ``stamps_ns``.
 
         ``arrival_ns``: when the block was received (live: the node's clock), for the

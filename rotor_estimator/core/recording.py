@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Rig data as plain arrays: what the estimator node's input topics carry.
 
 A :class:`RigRecording` is what the simulator makes, what ``import`` reads from a

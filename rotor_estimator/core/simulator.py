@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Synthetic rig data from the rigid rotor model (the paper's "experimental" data).
 
 Integrates Eq. 2 with a fixed-step fourth-order Runge-Kutta scheme on a grid

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Shaft angle, speed and angular acceleration from once-per-revolution keyphasor pulses.
 
 Each accepted pulse marks shaft angle 0 (mod 2*pi) at its stamp (integer ns). Pulse

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Sim-to-real gap diagnosis: where the residual lies, which unmodelled effect causes it, how far it shrinks.
 
 No ROS imports (bags are read by :mod:`rotor_estimator.cli.diagnose`). Entry point:

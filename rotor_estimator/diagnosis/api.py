@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``diagnose``: nominal fit, residual budget, effect ranking and the before/after table.
 
 The JSON summary (``Diagnosis.summary()``) carries at least ``where``, ``ranking``,
@@ -16,7 +18,8 @@ from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.diagnosis.context import WARMUP_S, FitContext, build_context
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
-from rotor_estimator.diagnosis.ranking import HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking, nominal_solution, rank_effects
+from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking,
+                                              nominal_solution, rank_effects)
 from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
 SCHEMA_VERSION = 3  # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance; 3: data
@@ -75,7 +78,8 @@ class Diagnosis:
             "top_two": top2,
             "residual_rms_before": float(before),
             "residual_rms_after": float(after),
-            "residual_rms_before_per_channel_m": dict(zip(CHANNELS, _per_channel(ctx.y_m - self.nominal_prediction_m, ctx.mask))),
+            "residual_rms_before_per_channel_m": dict(zip(CHANNELS, _per_channel(ctx.y_m - self.nominal_prediction_m,
+                                                                                   ctx.mask))),
             "residual_rms_after_per_channel_m": dict(zip(CHANNELS, _per_channel(
                 ctx.y_m - (self.after_fit.prediction_m if self.after_fit else self.nominal_prediction_m), ctx.mask))),
             "shrink_ratio": float(before / after) if after > 0 else 1.0,

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The nominal fit and the shared fitting context of every candidate effect.
 
 Nominal fit, in two stages:

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Variable-projection least squares shared by every candidate effect.
 
 The augmented model's probe output is written as

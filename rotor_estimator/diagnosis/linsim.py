@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Exact-discretization simulation of linear rotor models (the diagnosis's re-simulation engine).
 
 The diagnosis re-simulates the nominal model and its augmentations many times, so it

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """State-space forms of the nominal rigid rotor and of its structural augmentations.
 
 Nominal (Miller & Howard, Eq. 2 in first-order form, state ``q = [v, z]``)::
@@ -22,7 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from rotor_estimator.core.config import RigConfig
-from rotor_estimator.core.model import RotorMatrices, damping_matrix, point_force_weights, state_matrix, stiffness_matrix
+from rotor_estimator.core.model import (RotorMatrices, damping_matrix, point_force_weights, state_matrix,
+                                        stiffness_matrix)
 
 
 def rigid_state_matrix(mats: RotorMatrices, coefficients: np.ndarray, speed_rad_s: float) -> np.ndarray:

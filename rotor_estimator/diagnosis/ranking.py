@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Fit every candidate effect, rank by evidence (BIC) and by held-out prediction, pick a winner.
 
 Decision rule (documented in the report):
@@ -26,7 +28,8 @@ from scipy.optimize import least_squares
 from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.diagnosis.context import FitContext
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
-from rotor_estimator.diagnosis.fitting import LinearSolution, Projector, bic, coefficients_after, held_out_rms, solve_linear
+from rotor_estimator.diagnosis.fitting import (LinearSolution, Projector, bic, coefficients_after, held_out_rms,
+                                              solve_linear)
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
 SIGNIFICANCE_DELTA_BIC = 30.0

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The diagnosis report: Markdown with PNG figures (matplotlib Agg) and the JSON summary.
 
 Plotting lives here, not in the numerical modules. Figures: residual spectra before and
@@ -122,7 +124,8 @@ def markdown(d: Diagnosis, summary: dict) -> str:
         lines.append(f"| {r['band']} | {100 * r['share']:.1f} % | {_fmt_um(r['rms_m'])} |")
     lines += ["", "| channel | RMS (um) | excess over noise (um) | share |", "|---|---|---|---|"]
     for r in w["channels"]:
-        lines.append(f"| {r['channel']} | {_fmt_um(r['rms_m'])} | {_fmt_um(r['excess_rms_m'])} | {100 * r['share']:.1f} % |")
+        lines.append(f"| {r['channel']} | {_fmt_um(r['rms_m'])} | {_fmt_um(r['excess_rms_m'])} "
+                     f"| {100 * r['share']:.1f} % |")
     if w["nonsync_peaks"]:
         lines.append("")
         lines.append("Non-synchronous peaks: " + ", ".join(f"{p['frequency_hz']:.1f} Hz" for p in w["nonsync_peaks"]))
@@ -158,7 +161,8 @@ def markdown(d: Diagnosis, summary: dict) -> str:
             for k, v in fit["parameters"].items():
                 lines.append(f"- {k}: {v['value']:.6g} +- {v['std']:.2g}")
     lines += ["", "![ranking](ranking.png)", "", "## 3. How far it shrinks", "",
-              "| model | RMS (um) | 1X | 2X | 3X | non-sync | broadband | output NIS | held-out (um) | kxx | kyy | cxx | cyy |",
+              "| model | RMS (um) | 1X | 2X | 3X | non-sync | broadband | output NIS | held-out (um) "
+              "| kxx | kyy | cxx | cyy |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in summary["table"]:
         b, c = r["excess_band_rms_m"], r["coefficients"]

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Where the gap lies: a budget of the residual power by channel, band, whirl direction and time.
 
 Bands: the synchronous orders 1X..8X are estimated by order tracking (least squares on

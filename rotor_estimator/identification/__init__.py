@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Identification beyond the seed: imbalance-only sweeps, four methods, speed-dependent and
 16-coefficient models, the excitation planner and the identifiability report.
 
@@ -11,7 +13,8 @@ Pure numerics (no ROS). Modules:
 * :mod:`.planner` -- CRLB of candidate tests and the recommendation;
 * :mod:`.identifiability` -- what the data received determine.
 """
-from rotor_estimator.core.identifiability import IdentifiabilityReport, Thresholds, report_from_filter, report_from_information
+from rotor_estimator.core.identifiability import (IdentifiabilityReport, Thresholds, report_from_filter,
+                                                  report_from_information)
 from rotor_estimator.identification.methods import DEFAULT_LIVE, DEFAULT_OFFLINE, METHODS, identify
 from rotor_estimator.identification.planner import Target, plan
 from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays, record_from_recording

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Batch output-error maximum likelihood: the efficient reference.
 
 Model: ``y_k = Hp z_k(p) + v_k`` with ``z_k`` the noise-free response of Eq. 2 (one RK4

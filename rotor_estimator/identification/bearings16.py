@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Non-identical bearings: 16 coefficients (bearing 1 and bearing 2 each ``kxx kxy kyx kyy cxx cxy cyx cyy``).
 
 The seed model (Eq. 4) gives both bearings the same 2x2 stiffness and damping; a real

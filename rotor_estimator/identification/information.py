@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Fisher information and Cramér-Rao bounds of the generalized model, for one or several records.
 
 For Gaussian probe noise ``y_k = Hp z_k(p) + v_k``, ``v_k ~ N(0, R)``, the information is
@@ -10,13 +12,16 @@ complement, then the records' information is summed (they are independent).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import TYPE_CHECKING, Iterable
 
 import numpy as np
 
 from rotor_estimator.identification import passes
 from rotor_estimator.core.fisher import eliminate_nuisance
 from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
+
+if TYPE_CHECKING:
+    from rotor_estimator.identification.scenarios import SimulatedRecord
 
 
 def record_information(arrays: RigArrays, model: CoefficientModel, record: Record, theta: np.ndarray,
@@ -33,7 +38,8 @@ def record_information(arrays: RigArrays, model: CoefficientModel, record: Recor
     return fim
 
 
-def design_information(arrays: RigArrays, model: CoefficientModel, records, theta: np.ndarray, *,
+def design_information(arrays: RigArrays, model: CoefficientModel, records: Iterable[SimulatedRecord],
+                       theta: np.ndarray, *,
                        estimate_imbalance: bool, noise_std_m: float) -> np.ndarray:
     """Summed information of ``[theta, b?]`` over simulated records (each record's initial
     state eliminated). ``records``: :class:`~.scenarios.SimulatedRecord` items."""

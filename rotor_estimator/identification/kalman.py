@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Recursive estimators on the augmented state ``[v, z (8), theta, b?]``: EKF, UKF, EKF + RTS smoother.
 
 * **EKF** -- Miller & Howard Eqs. 7-17 on the generalized model, with the ``predict`` and

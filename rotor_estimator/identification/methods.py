@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The four identification methods behind one call, and the default for each situation.
 
 =============  =====================================================================

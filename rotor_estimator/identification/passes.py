@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Identification's drivers of the compiled filter kernel (:mod:`rotor_estimator.core.filter_kernel`).
 
 Everything model- and filter-related (the generalized rigid-rotor model of Eq. 2 with the coefficient

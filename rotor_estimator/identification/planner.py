@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Excitation planner: the Cramér-Rao bound of candidate tests and the shortest one meeting a target.
 
 For each candidate :class:`~.scenarios.TestDesign` the noise-free response is simulated
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -26,7 +29,8 @@ from rotor_estimator.core.model import eigenfrequencies, rotor_matrices
 from rotor_estimator.core.fisher import bound
 from rotor_estimator.identification.information import design_information
 from rotor_estimator.identification.problem import CoefficientModel, RigArrays
-from rotor_estimator.identification.scenarios import RPM, SpeedSegment, TestDesign, TrialWeight, dwell, multi_impact, simulate_design, sweep
+from rotor_estimator.identification.scenarios import (RPM, SpeedSegment, TestDesign, TrialWeight, dwell, multi_impact,
+                                                      simulate_design, sweep)
 
 DIRECT = np.array([True, False, False, True, True, False, False, True])
 
@@ -186,7 +190,9 @@ class Plan:
         head = f"{'test':<70}{'time s':>8}{'rpm/s':>8}{'max direct %':>14}{'max cross %':>13}  meets"
         lines += [head, "-" * len(head)]
         for c in self.candidates:
-            fmt = (lambda v: f"{100 * v:.3g}" if np.isfinite(v) and v < 1e4 else "inf")
+            def fmt(v):
+                return f"{100 * v:.3g}" if np.isfinite(v) and v < 1e4 else "inf"
+
             mark = "yes" if c.meets(self.target) else "no"
             if not self.feasible(c):
                 mark = f"no (needs {required_decel_rpm_per_s(c.design):.0f} rpm/s)"
@@ -214,7 +220,8 @@ class Plan:
                          + (", ".join(f"{w / RPM:.0f} rpm" for w in crit) if crit else "none of them"))
             for k, w in enumerate(r.design.trial_weights):
                 lines.append(f"Trial weight of record {k + 1}: {w.mass_kg * 1e3:.4g} g at {w.radius_m * 1e3:.4g} mm, "
-                             f"imbalance plane {w.plane + 1}, {math.degrees(w.phase_rad):.0f} deg from the keyphasor mark")
+                             f"imbalance plane {w.plane + 1}, {math.degrees(w.phase_rad):.0f} deg "
+                             f"from the keyphasor mark")
             if r.design.impacts:
                 f = max(max(abs(i.force_x_n), abs(i.force_y_n)) for i in r.design.impacts)
                 lines.append(f"Hammer: {len(r.design.impacts)} hit(s) of {f:g} N peak, "
@@ -242,7 +249,8 @@ def _names(n: int) -> tuple[str, ...]:
 
 def plan(rig: RigConfig, target: Target, *, coefficients: np.ndarray | None = None,
          designs: list[TestDesign] | None = None, unknown_imbalance: bool = True, bearings16: bool = False,
-         noise_std_m: float | None = None, progress=None, max_decel_rpm_per_s: float | None = None) -> Plan:
+         noise_std_m: float | None = None, progress: Callable[[int], object] | None = None,
+         max_decel_rpm_per_s: float | None = None) -> Plan:
     """Evaluate the candidates and recommend the shortest test meeting ``target``."""
     if coefficients is None:
         if rig.true_coefficients is None:

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Figures for identification (matplotlib, imported lazily; kept out of the numerical modules)."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The identification problem: rig arrays, coefficient parameterization and test records.
 
 * :class:`CoefficientModel` maps the estimated parameters ``theta`` to the 16 physical
@@ -17,12 +19,17 @@ quadrature moments per imbalance plane: ``a = m r cos(phase)``, ``b = m r sin(ph
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rotor_estimator.core.config import COEFFICIENT_NAMES, RigConfig
 from rotor_estimator.core.errors import ConfigError, InputError
 from rotor_estimator.core.model import point_force_weights, rotor_matrices
+
+if TYPE_CHECKING:
+    from rotor_estimator.core.offline import ShaftInputs
+    from rotor_estimator.core.recording import RigRecording
 
 BEARING_COEFFICIENT_NAMES: tuple[str, ...] = tuple(f"{n}_{b}" for b in (1, 2) for n in COEFFICIENT_NAMES)
 
@@ -209,7 +216,8 @@ def generalized_impact_force(rig: RigConfig, force_n: np.ndarray, axial_position
     return np.column_stack([w1 * f[:, 0], w1 * f[:, 1], w2 * f[:, 0], w2 * f[:, 1]])
 
 
-def record_from_recording(rig: RigConfig, recording, shaft=None, *, impact_position_m: float | None = None) -> Record:
+def record_from_recording(rig: RigConfig, recording: RigRecording, shaft: ShaftInputs | None = None, *,
+                          impact_position_m: float | None = None) -> Record:
     """A :class:`Record` from a :class:`~rotor_estimator.core.recording.RigRecording`, with the
     shaft state read through the tachometer (:func:`rotor_estimator.core.offline.shaft_inputs_from_recording`)
     unless ``shaft`` is given. Samples without a valid shaft reference are not used."""

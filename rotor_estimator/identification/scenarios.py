@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Test definitions: sweeps, dwells, multi-impact tests, trial weights; and their simulation.
 
 A :class:`TestDesign` is what an engineer runs: a speed profile made of linear
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -144,7 +147,7 @@ class TestDesign:
         return angle, speed, accel
 
 
-def sweep(name: str, speed_start_rpm: float, speed_end_rpm: float, duration_s: float, **kw) -> TestDesign:
+def sweep(name: str, speed_start_rpm: float, speed_end_rpm: float, duration_s: float, **kw: Any) -> TestDesign:
     """A linear coast-down (start > end) or run-up with the rotor's own imbalance."""
     return TestDesign(name=name, segments=(SpeedSegment(duration_s, speed_start_rpm * RPM, speed_end_rpm * RPM),),
                       description=kw.pop("description", f"linear sweep {speed_start_rpm:.0f} -> {speed_end_rpm:.0f} "
@@ -152,7 +155,7 @@ def sweep(name: str, speed_start_rpm: float, speed_end_rpm: float, duration_s: f
 
 
 def multi_impact(name: str, n_impacts: int, duration_s: float, speed_rpm: float, *, force_n: float = 515.0,
-                 positions_m: tuple[float | None, ...] = (None,), first_s: float = 0.04, **kw) -> TestDesign:
+                 positions_m: tuple[float | None, ...] = (None,), first_s: float = 0.04, **kw: Any) -> TestDesign:
     """``n_impacts`` hammer hits alternating in -y and -x (and over ``positions_m``), evenly spaced."""
     spacing = (duration_s - first_s) / max(n_impacts, 1)
     impacts = []
@@ -167,7 +170,7 @@ def multi_impact(name: str, n_impacts: int, duration_s: float, speed_rpm: float,
 
 
 def dwell(name: str, speeds_rpm: tuple[float, ...], dwell_s: float, *, ramp_s: float = 0.02,
-          trial_weights: tuple[TrialWeight, ...] = (), **kw) -> TestDesign:
+          trial_weights: tuple[TrialWeight, ...] = (), **kw: Any) -> TestDesign:
     """Dwells at ``speeds_rpm`` (each ``dwell_s``), joined by ramps of ``ramp_s``."""
     segs = []
     for i, s in enumerate(speeds_rpm):
@@ -181,7 +184,8 @@ def dwell(name: str, speeds_rpm: tuple[float, ...], dwell_s: float, *, ramp_s: f
 
 
 def design_from_scenario(rig: RigConfig, scenario: Scenario) -> TestDesign:
-    """The core simulator's :class:`~rotor_estimator.core.simulator.Scenario` as a design (impacts at the rig station)."""
+    """The core simulator's :class:`~rotor_estimator.core.simulator.Scenario` as a design (impacts at the
+    rig station)."""
     w0 = rig.speed_rad_s if scenario.speed_start_rad_s is None else scenario.speed_start_rad_s
     w1 = w0 if scenario.speed_end_rad_s is None else scenario.speed_end_rad_s
     return TestDesign(name=scenario.name, segments=(SpeedSegment(scenario.duration_s, w0, w1),),

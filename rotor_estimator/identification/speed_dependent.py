@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Speed-dependent coefficients: a sweep must not silently average them.
 
 Two models, both on the generalized kernel:
@@ -17,6 +19,7 @@ Two models, both on the generalized kernel:
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,6 +27,9 @@ from rotor_estimator.core.config import COEFFICIENT_UNITS
 from rotor_estimator.identification.batch_ml import BatchOptions, fit
 from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
 from rotor_estimator.identification.result import IdentificationResult
+
+if TYPE_CHECKING:
+    from rotor_estimator.identification.kalman import KalmanOptions
 
 RPM = 2.0 * np.pi / 60.0
 Z95 = 1.959963984540054
@@ -105,7 +111,8 @@ def table(result: IdentificationResult, speeds_rad_s: np.ndarray) -> SpeedTable:
     return SpeedTable(np.asarray(speeds_rad_s, dtype=float), result.model.coefficient_names, values, std)
 
 
-def random_walk_track(arrays: RigArrays, record: Record, options, *, rate: np.ndarray, keep_every: int = 200,
+def random_walk_track(arrays: RigArrays, record: Record, options: KalmanOptions, *, rate: np.ndarray,
+                      keep_every: int = 200,
                       estimate_imbalance: bool = False) -> SpeedTable:
     """Random-walk alternative: EKF + RTS with coefficient random-walk std rate ``rate`` (SI/sqrt(s));
     returns the smoothed coefficients at every ``keep_every``-th sample against the measured speed."""

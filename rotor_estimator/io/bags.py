@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Rosbag2 (MCAP) bags: write and read a :class:`RigRecording`, stream messages, record outputs.
 
 Input bags carry the estimator's input topics (see :mod:`msg_adapters.inputs`):
@@ -22,7 +24,7 @@ import tempfile
 import zlib
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Iterable, Iterator, NamedTuple
+from typing import Any, Iterable, Iterator, Literal, NamedTuple
 
 import numpy as np
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
@@ -38,7 +40,7 @@ from msg_adapters import (DEFAULT_INPUT_TOPICS, IMPACT_TYPES, PROBE_TYPES, PULSE
 from rotor_estimator.core.errors import BagError, InputError
 from rotor_estimator.core.recording import RigRecording
 
-ROSBAG2_VERSION = 9
+ROSBAG2_VERSION: Literal[9] = 9
 META_KEY = "rotor_estimator.meta"
 _RECOVER_HINT = ("if the recording was interrupted, recover it with `mcap recover IN.mcap -o OUT.mcap` "
                  "or `ros2 bag reindex`, otherwise re-record it")
@@ -139,7 +141,8 @@ class BagWriter:
         self.path = Path(path)
         _require_new(self.path)
         try:
-            self._staging = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.partial-", dir=self.path.parent))
+            self._staging: Path | None = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.partial-",
+                                                               dir=self.path.parent))
         except OSError as exc:
             raise BagError(f"cannot create bag {self.path}: {exc.strerror or exc}") from exc
         self._writer = _Rosbag2Writer(self._staging / self.path.name, version=ROSBAG2_VERSION,

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """DAQ recordings (CSV, NPZ, HDF5) -> a validated :class:`RigRecording`, refusing what would be wrong.
 
 Pure core: no ROS, no bag library (``rotor-estimator import`` writes the bag with :mod:`bagio`).
@@ -173,7 +175,7 @@ def _read_csv(p: Path, what: str, delimiter: str | None) -> dict[str, np.ndarray
     if any(not n for n in names):
         raise InputError(f"{what} file {p}: an empty column name in the header {lines[0]!r} "
                          f"(delimiter {delimiter!r}; choose another with --delimiter)")
-    seen = {}
+    seen: dict[str, int] = {}
     for i, n in enumerate(names):
         if n.lower() in seen:
             raise InputError(f"{what} file {p}: column {n!r} appears twice (columns {seen[n.lower()] + 1} and "

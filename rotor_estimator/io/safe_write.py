@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Write report, plot and result files without ever following a symbolic link.
 
 Policy (one place, used by every report and plot writer):

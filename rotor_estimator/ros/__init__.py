@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """ROS 2 nodes (thin rclpy shells over :mod:`rotor_estimator.core.pipeline` and the simulator).
 
 * :mod:`.estimator_node`: ``estimator_node`` executable, the live estimator.

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``estimator_node``: the live bearing-coefficient estimator (thin rclpy shell).
 
 Declares its parameters (all in :data:`PARAMETERS`, documented in ``config/estimator.yaml``),
@@ -187,7 +189,8 @@ class EstimatorNode(Node):
         for name in (ma.COEFFICIENTS_TOPIC, ma.COVARIANCE_TOPIC, ma.INNOVATION_TOPIC, ma.NIS_TOPIC, ma.SHAFT_TOPIC,
                      ma.IDENTIFIABILITY_TOPIC):
             topic = ma.output_topic(name, self._namespace)
-            self._pubs[topic] = self.create_publisher(self._factory.message_class("sensor_msgs/msg/JointState"), topic, 50)
+            self._pubs[topic] = self.create_publisher(self._factory.message_class("sensor_msgs/msg/JointState"),
+                                                      topic, 50)
         self._diag_pub = self.create_publisher(self._factory.message_class("diagnostic_msgs/msg/DiagnosticArray"),
                                                ma.DIAGNOSTICS_TOPIC, 10)
         from std_srvs.srv import Trigger
@@ -220,7 +223,10 @@ class EstimatorNode(Node):
         if old is not None:
             self.destroy_subscription(old[1])
         topic = getattr(self.topics, stream)
-        callback = (lambda msg, s=stream: self._on_input(s, msg))
+
+        def callback(msg, s=stream):
+            return self._on_input(s, msg)
+
         try:  # count messages the middleware drops (e.g. a keyphasor flood beyond the queue)
             events = _SubscriptionEventCallbacks(message_lost=lambda info, s=stream: self._on_lost(s, info))
             sub = self.create_subscription(self._factory.message_class(typename), topic, callback, self._input_qos,
@@ -330,7 +336,8 @@ class EstimatorNode(Node):
         if self.unexpected_errors:
             status = replace(status, level=LEVEL_ERROR,
                              message=status.message + f"; {self.unexpected_errors} unexpected error(s) in callbacks "
-                             "(see the node's log)", extra={**status.extra, "unexpected_errors": self.unexpected_errors})
+                             "(see the node's log)",
+                             extra={**status.extra, "unexpected_errors": self.unexpected_errors})
         stamp = last if last is not None else self._now_ns()
         record = diagnostic_record(status, self.hardware_id)
         self._diag_pub.publish(ma.diagnostics_to_msg(self._factory, stamp, [record]))

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """ROS parameters declared in one place per node: a spec per parameter, its descriptor, the
 declaration (with integer-for-double coercion and one-line errors) and the documented file."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Messages <-> :class:`~rotor_estimator.core.pipeline.EstimatorPipeline`, shared by the node and replay.
 
 No rclpy import here: the same functions run on rclpy messages (live node) and on
@@ -79,5 +81,6 @@ def output_messages(factory: ma.MessageFactory, out: Output, namespace: str = ma
             factory, t, [math.nan if e.value_for_display is None else e.estimate for e in ident],
             [e.predicted_std for e in ident], [e.status for e in ident])))
     if with_diagnostics:
-        msgs.append((ma.DIAGNOSTICS_TOPIC, ma.diagnostics_to_msg(factory, t, [diagnostic_record(out.diagnostics, hardware_id)])))
+        msgs.append((ma.DIAGNOSTICS_TOPIC,
+                     ma.diagnostics_to_msg(factory, t, [diagnostic_record(out.diagnostics, hardware_id)])))
     return msgs

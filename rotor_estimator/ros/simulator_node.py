@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``simulator_node``: publishes the estimator's input topics from the model or from a bag.
 
 * ``mode: simulate`` (default): simulates the rig (default: the bundled seed rig, the paper's
@@ -90,11 +92,11 @@ def recording_events(rec: RigRecording, factory: ma.MessageFactory, block_size: 
             j = min(i + step, n)
             st, xy = t[i:j], rec.probes_m[i:j, cols]
             if point_stamped:
-                make = (lambda s, st=st, xy=xy, frame=frame:
-                        ma.probe_sample_to_msg(factory, int(st[0]) + s, xy[0, 0], xy[0, 1], frame_id=frame))
+                def make(s, st=st, xy=xy, frame=frame):
+                    return ma.probe_sample_to_msg(factory, int(st[0]) + s, xy[0, 0], xy[0, 1], frame_id=frame)
             else:
-                make = (lambda s, st=st, xy=xy, frame=frame:
-                        ma.probe_block_to_msg(factory, st + s, xy, frame_id=frame))
+                def make(s, st=st, xy=xy, frame=frame):
+                    return ma.probe_block_to_msg(factory, st + s, xy, frame_id=frame)
             events.append(Event(int(st[-1]) - t0, stream, make))
     for p in rec.pulse_stamps_ns.tolist():
         events.append(Event(int(p) - t0, "keyphasor", lambda s, p=p: ma.pulse_to_msg(factory, int(p) + s)))

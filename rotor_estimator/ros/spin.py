@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The standard ``main()`` of every node: init, spin, report configuration errors, shut down cleanly."""
 from __future__ import annotations
 

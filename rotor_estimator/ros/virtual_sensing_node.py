@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``virtual_sensing_node``: live virtual sensing (thin rclpy shell).
 
 Declares its parameters (all in :data:`PARAMETERS`, with unit and default), subscribes to
@@ -127,8 +129,8 @@ class VirtualSensingNode(Node):
                                      lambda msg, name=s.name, kind=s.kind: self._on_block(name, kind, msg), qos)
         if values["keyphasor_topic"]:
             self.undecodable["keyphasor"] = 0
-            self.create_subscription(self._factory.message_class("sensor_msgs/msg/TimeReference"), values["keyphasor_topic"],
-                                     self._on_pulse, QoSProfile(depth=100))
+            self.create_subscription(self._factory.message_class("sensor_msgs/msg/TimeReference"),
+                                     values["keyphasor_topic"], self._on_pulse, QoSProfile(depth=100))
         joint = self._factory.message_class("sensor_msgs/msg/JointState")
         self._pubs = {name: self.create_publisher(joint, f"~/{ma.STATIONS_TOPIC}/{name}", 100)
                       for name, _ in self.pipeline.stations}

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Virtual sensing: vibration at stations without a sensor, with honest 95% intervals.
 
 * :func:`estimate_stations`: displacement, velocity and acceleration at any axial
@@ -24,8 +26,8 @@ from scipy.stats import norm
 
 from rotor_estimator.core.errors import ConfigError, InputError
 from rotor_estimator.core.flexible.state_space import FlexibleStateSpace, periodic_steady_state, station_outputs
-from rotor_estimator.core.linear_filters import (ExtendedKalmanFilter, KalmanFilter, LinearGaussianModel, UnscentedKalmanFilter,
-                             single_threaded_blas)
+from rotor_estimator.core.linear_filters import (ExtendedKalmanFilter, KalmanFilter, LinearGaussianModel,
+                                                 UnscentedKalmanFilter, single_threaded_blas)
 from rotor_estimator.core.tachometer import TachometerConfig, shaft_states_from_pulses
 
 __all__ = ["VirtualSensingConfig", "make_filter", "StationEstimate", "estimate_stations", "confidence_ellipse",
@@ -75,7 +77,8 @@ class VirtualSensingConfig:
         return float(norm.ppf(0.5 + 0.5 * self.confidence))
 
 
-def make_filter(model: LinearGaussianModel, x0: np.ndarray, P0: np.ndarray, config: VirtualSensingConfig):
+def make_filter(model: LinearGaussianModel, x0: np.ndarray, P0: np.ndarray,
+                config: VirtualSensingConfig) -> KalmanFilter | ExtendedKalmanFilter | UnscentedKalmanFilter:
     """The configured filter on ``model``; all three share the streaming interface."""
     g = config.gate_probability
     if config.filter == "kf":
@@ -180,7 +183,7 @@ class StationFilter:
         blocks = [station_outputs(ss, pos) for _, pos in self.stations]
         self.C = np.vstack([b[0] for b in blocks])
         self.D = np.vstack([b[1] for b in blocks])
-        self.filter = None
+        self.filter: KalmanFilter | ExtendedKalmanFilter | UnscentedKalmanFilter | None = None
         self.n_samples = 0
 
     @property

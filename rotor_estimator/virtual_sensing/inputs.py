@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Bags <-> arrays for multi-sensor rigs (virtual sensing). I/O layer: imports rosbags.
 
 Input bags carry one topic per sensor of the rotor description, ``/rotor/<sensor>``,

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Figures of a virtual-sensing run (``rotor-estimator virtual-sensing --report DIR``).
 
 * ``orbit_<station>.png``: the estimated displacement orbit at each station over the
@@ -20,7 +22,8 @@ from typing import Sequence
 import numpy as np
 
 from rotor_estimator.io.safe_write import output_directory, save_figure, write_text
-from rotor_estimator.virtual_sensing.estimator import HiddenTrace, LeaveOneOutReport, StationEstimate, confidence_ellipse
+from rotor_estimator.virtual_sensing.estimator import (HiddenTrace, LeaveOneOutReport, StationEstimate,
+                                                      confidence_ellipse)
 
 __all__ = ["plot_station_orbit", "plot_hidden_trace", "write_report"]
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Streaming virtual sensing: the same per-sample filter step, fed live (node) or from a bag.
 
 * :class:`SensorAligner`: the virtual-sensing configuration of the core

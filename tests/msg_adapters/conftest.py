@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Fixtures: the same adapter code is exercised with rclpy classes and rosbags dataclasses."""
 from __future__ import annotations
 

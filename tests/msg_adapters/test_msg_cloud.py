@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """PointCloud2 decoding locates fields by name, offset and datatype, not by assumed layout."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Input adapters: probes, keyphasor, impact; rclpy and rosbags classes through the same code."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Output adapters (JointState, DiagnosticArray): exact round trips, decoding by name."""
 from __future__ import annotations
 

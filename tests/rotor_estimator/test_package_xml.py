@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """package.xml lists every runtime dependency a colcon build needs: each ROS package the code
 imports or names in a message type, and each pip requirement (rosdep key or the documented pip step)."""
 from __future__ import annotations

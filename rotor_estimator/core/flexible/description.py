@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Rotor description file: frozen, validated records of a flexible rotor on bearings.
 
 All quantities are SI and the unit is in every field name. Axial stations
@@ -223,7 +225,8 @@ def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDes
     material = Material(
         number_field(get_field(mat, "density_kg_m3", f"{path}.material"), f"{path}.material.density_kg_m3", "kg/m^3",
                 low=0.0, low_open=True),
-        number_field(get_field(mat, "youngs_modulus_pa", f"{path}.material"), f"{path}.material.youngs_modulus_pa", "Pa",
+        number_field(get_field(mat, "youngs_modulus_pa", f"{path}.material"), f"{path}.material.youngs_modulus_pa",
+                     "Pa",
                 low=0.0, low_open=True),
         number_field(get_field(mat, "poisson_ratio", f"{path}.material"), f"{path}.material.poisson_ratio", "-",
                 low=-0.99, high=0.5))
@@ -231,7 +234,8 @@ def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDes
     for i, item in enumerate(_list(data, "shaft", path)):
         ip = f"{path}.shaft[{i}]"
         reject_unknown_keys(item, {"length_m", "outer_diameter_m", "inner_diameter_m"}, ip)
-        od = number_field(get_field(item, "outer_diameter_m", ip), f"{ip}.outer_diameter_m", "m", low=0.0, low_open=True)
+        od = number_field(get_field(item, "outer_diameter_m", ip), f"{ip}.outer_diameter_m", "m", low=0.0,
+                          low_open=True)
         idm = number_field(item.get("inner_diameter_m", 0.0), f"{ip}.inner_diameter_m", "m", low=0.0)
         if idm >= od:
             raise ConfigError(f"{ip}.inner_diameter_m: must be < outer_diameter_m ({od:g} m), got {idm:g}")
@@ -249,7 +253,8 @@ def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDes
         kw: dict[str, Any] = {"name": str(get_field(item, "name", ip))}
         for f in allowed - {"name"}:
             if f in item or f in {"mass_kg", "kxx_N_per_m", "kyy_N_per_m"}:
-                kw[f] = number_field(get_field(item, f, ip), f"{ip}.{f}", "SI", low=None if f == "axial_position_m" else 0.0)
+                kw[f] = number_field(get_field(item, f, ip), f"{ip}.{f}", "SI",
+                                     low=None if f == "axial_position_m" else 0.0)
         if kw["mass_kg"] <= 0:
             raise ConfigError(f"{ip}.mass_kg: must be > 0 kg")
         pedestals.append(Pedestal(**kw))
@@ -302,7 +307,8 @@ def rotor_from_mapping(data: Mapping[str, Any], path: str = "rotor") -> RotorDes
         if not directions or any(d not in ("x", "y") for d in directions) or len(set(directions)) != len(directions):
             raise ConfigError(f"{ip}.directions: a list of distinct 'x' and 'y', got {directions!r}")
         sensors.append(Sensor(str(get_field(item, "name", ip)), kind, _station(item, ip, length), directions,
-                              number_field(get_field(item, noise_key, ip), f"{ip}.{noise_key}", "SI", low=0.0, low_open=True),
+                              number_field(get_field(item, noise_key, ip), f"{ip}.{noise_key}", "SI", low=0.0,
+                                           low_open=True),
                               _opt_name(item, "pedestal", ip, ped_names)))
     names = [s.name for s in sensors]
     if len(set(names)) != len(names):

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Finite-element rotor: Timoshenko shaft elements, rigid disks, linear bearings and
 rigid pedestals (Eqs. 1-8 of Neisi et al.; element matrices of Nelson & McVaugh /
 Friswell et al., *Dynamics of Rotating Machines*, ch. 5).

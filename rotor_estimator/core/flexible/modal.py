@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Assumed-mode reduction (Appendix A of Neisi et al.) and first-order state space (Eqs. 9-10).
 
 ``S_r`` holds the ``r`` lowest undamped, non-rotating mode shapes of ``(K_s, M)``

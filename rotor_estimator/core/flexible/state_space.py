@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Discrete state-space model of a (reduced) FE rotor with sensors and virtual stations.
 
 State ``x = T^-1 [q_r, q_r']`` (Eq. 9 in modal coordinates, Appendix A), where the
@@ -171,7 +173,7 @@ def station_outputs(ss: FlexibleStateSpace, station_axial_m: float) -> tuple[np.
     return np.array(rows_c), np.array(rows_d), tuple(names)
 
 
-def unbalance_inputs(ss: FlexibleStateSpace, t_s: np.ndarray, shaft_angle_rad: np.ndarray | None = None,
+def unbalance_inputs(ss: FlexibleStateSpace, t_s: np.ndarray | None, shaft_angle_rad: np.ndarray | None = None,
                      speed_rad_s: float | None = None) -> np.ndarray:
     """u[k] = Omega^2 [cos theta_k, sin theta_k] (N, 2); theta = Omega t unless measured."""
     w = ss.rotor.speed_rad_s if speed_rad_s is None else speed_rad_s

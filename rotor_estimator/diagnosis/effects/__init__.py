@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The library of candidate unmodelled effects: one module per effect, registered here.
 
 Each effect is a frozen dataclass with its physical parameters (SI, unit in the name) and the

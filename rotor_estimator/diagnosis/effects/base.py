@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The library of candidate unmodelled effects: small, physical augmentations of Eq. 2.
 
 Each effect is a frozen dataclass with its physical parameters (SI, unit in the name)

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Bearing nonlinearity: a cubic stiffness term at each bearing."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Coupled flexible-shaft effect: an equivalent Euler-Bernoulli beam on the fitted bearings.
 
 The rig file gives only the rotor's mass ``m``, transverse and polar inertias about the
@@ -61,7 +63,8 @@ import scipy.linalg
 
 from rotor_estimator.core.config import RigConfig
 from rotor_estimator.core.flexible.fe_rotor import hermite_shape, subdivide
-from rotor_estimator.core.model import RotorMatrices, damping_matrix, point_force_weights, rotor_matrices, stiffness_matrix
+from rotor_estimator.core.model import (RotorMatrices, damping_matrix, point_force_weights, rotor_matrices,
+                                        stiffness_matrix)
 from rotor_estimator.diagnosis import models
 from rotor_estimator.diagnosis.context import FitContext
 from rotor_estimator.diagnosis.effects.base import Effect, rotating_mass_force

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Hammer force scale: a sensitivity error of the impact hammer's force channel."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Misalignment: 2X forces and a static preload at the bearings."""
 from __future__ import annotations
 

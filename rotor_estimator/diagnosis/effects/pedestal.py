@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Pedestal flexibility: the bearing housings on a mass-spring-damper foundation."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Probe calibration: gain and mounting-angle errors of each probe."""
 from __future__ import annotations
 

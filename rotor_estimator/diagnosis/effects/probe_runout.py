@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Probe runout: electrical/mechanical runout of the probe track, harmonics of the shaft angle."""
 from __future__ import annotations
 

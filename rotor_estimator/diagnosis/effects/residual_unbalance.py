@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Residual unbalance: rotating masses in the rig's two correction planes (a 1X force)."""
 from __future__ import annotations
 

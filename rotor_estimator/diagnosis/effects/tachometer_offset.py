@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Keyphasor angular offset: the once-per-revolution mark is not where the model puts it."""
 from __future__ import annotations
 

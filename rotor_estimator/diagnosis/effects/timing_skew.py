@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Timing skew: a delay of one probe channel against the others."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind-set generator: realistic caps, redrawn conditions when a capped effect would hide under the noise."""
 from __future__ import annotations
 
@@ -11,7 +13,8 @@ from rotor_estimator.bench.effect_sim import HiddenEffects
 
 
 def test_cubic_cap_is_the_stated_tangent_stiffness_increase():
-    """At the cap, 3 k3 x_rms^2 / k equals CUBIC_TANGENT_RATIO_CAP in the limiting direction and is below it in the other."""
+    """At the cap, 3 k3 x_rms^2 / k equals CUBIC_TANGENT_RATIO_CAP in the limiting direction and is below
+    it in the other."""
     rng = np.random.default_rng(1)
     ctx = {"k3": np.array([0.6, 0.9])}
     coefficients = np.array([4e5, 0, 0, 7e5, 1e3, 0, 0, 1e3])
@@ -67,7 +70,8 @@ def test_pair_member_its_partner_absorbs_is_redrawn(monkeypatch):
     ("residual_unbalance", HiddenEffects(residual_unbalance_kg_m=(3e-6, -2e-6, 1e-6, 4e-6)), 1e-6),
     ("misalignment", HiddenEffects(misalignment_n=(8.0, -5.0, 3.0, 6.0)), 1e-6),
     # linearized map: a 1 % gain and 0.6 deg leave their second-order part only
-    ("probe_gain_orientation", HiddenEffects(gain=(0.01, -0.01, 0.005, 0.01), orientation_rad=(0.01, -0.01, 0.005, 0.0)),
+    ("probe_gain_orientation",
+     HiddenEffects(gain=(0.01, -0.01, 0.005, 0.01), orientation_rad=(0.01, -0.01, 0.005, 0.0)),
      2e-2),
 ])
 def test_linear_partner_columns_absorb_the_partners_own_signal(name, effects, rel_tol):

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Blind-benchmark scoring: pairs, controls and the separable-pair split."""
 from __future__ import annotations
 
@@ -18,13 +20,15 @@ def test_pairs_are_all_counted_and_the_separable_ones_reported_apart():
               "b": _label(["misalignment", "timing_skew"], {"misalignment": 1.6, "timing_skew": 1.4}),
               "c": _label([]),
               "d": _label(["pedestal"])}
-    res = [{"case": "a", "best_effect": "probe_runout", "second_effect": "none", "top_two": ["probe_runout", "tach_offset"],
+    res = [{"case": "a", "best_effect": "probe_runout", "second_effect": "none",
+            "top_two": ["probe_runout", "tach_offset"],
             "before": 2e-6, "shrink_ratio": 2.0, "seconds": 1.0},
            {"case": "b", "best_effect": "misalignment", "second_effect": "timing_skew",
             "top_two": ["misalignment", "timing_skew"], "before": 2e-6, "shrink_ratio": 2.0, "seconds": 1.0},
            {"case": "c", "best_effect": "none", "second_effect": "none", "top_two": ["none"], "before": 1e-6,
             "shrink_ratio": 1.0, "seconds": 1.0},
-           {"case": "d", "best_effect": "shaft_bending", "second_effect": "none", "top_two": ["shaft_bending", "pedestal"],
+           {"case": "d", "best_effect": "shaft_bending", "second_effect": "none",
+            "top_two": ["shaft_bending", "pedestal"],
             "before": 3e-6, "shrink_ratio": 3.0, "seconds": 1.0}]
     s = score(res, labels)
     assert s["pairs_both_in_top2"] == [False, True]

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The blind-set simulator: a record is steady running, with no start-up transient left in it."""
 from __future__ import annotations
 
@@ -24,7 +26,8 @@ def test_record_of_a_lightly_damped_pedestal_is_periodic(rig):
     assert abs(spr - round(spr)) < 1e-9
     m, f, zeta = 3.8, 60.0, 0.03
     k = m * (2 * math.pi * f) ** 2
-    effects = HiddenEffects(residual_unbalance_kg_m=(5e-6, 3e-5, 3e-5, 2e-6), pedestal=(m, k, 2 * zeta * math.sqrt(k * m)))
+    effects = HiddenEffects(residual_unbalance_kg_m=(5e-6, 3e-5, 3e-5, 2e-6),
+                            pedestal=(m, k, 2 * zeta * math.sqrt(k * m)))
     r = rig.true_coefficients.as_array()
     assert settling_time_s(rig, r, speed, effects) > 0.3  # the case the fixed lead-in got wrong
     sim = simulate_with_effects(rig, EffectScenario(speed_rad_s=speed, duration_s=0.2, lead_in_s=0.3, impacts=(),

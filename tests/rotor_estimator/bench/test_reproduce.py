@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """A small reproduction of Table 3 lands within generous bounds, and the command's outputs are well formed."""
 import json
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Every ``--seed`` and ``--passes`` of the command line refuses out-of-range values in argparse
 (one error line naming the range, exit 2) instead of a numpy traceback or a zero-pass run."""
 from __future__ import annotations
@@ -44,7 +46,7 @@ def test_every_seed_and_passes_option_uses_the_range_checked_type():
 def test_out_of_range_value_exits_2_with_one_error_line(capsys, flag, value, message):
     """Each command taking the option exits 2 with '<prog>: error: argument <flag>: <range>' and
     no traceback; 0 and the limits themselves are accepted."""
-    for path, sub, _ in _options(flag):
+    for path, _sub, _ in _options(flag):
         with pytest.raises(SystemExit) as info:
             main([*path, flag, value])
         err = capsys.readouterr().err

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """``rotor-estimator simulate | replay | import`` end to end on bags written in tmp_path."""
 from __future__ import annotations
 

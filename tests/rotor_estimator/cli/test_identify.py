@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """`identify`: imbalance estimated by default, fit quality reported, a wrong stated imbalance caught,
 several records with trial weights fitted together."""
 from __future__ import annotations
@@ -6,7 +8,6 @@ import dataclasses
 import json
 import math
 
-import numpy as np
 import pytest
 import yaml
 

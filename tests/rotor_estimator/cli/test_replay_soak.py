@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Soak: replaying a long record keeps memory flat (streaming: nothing grows with the record)."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Properties of the one alignment queue (rotor_estimator.core.alignment.StreamAligner): N named
 streams, and the estimator's configuration of it (two probe planes plus the held impact force)."""
 from __future__ import annotations

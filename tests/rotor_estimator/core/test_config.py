@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Rig files load, validate, and reject bad input with a message naming the field."""
 import os
 import threading

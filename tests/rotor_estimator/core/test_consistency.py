@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Innovation consistency (NIS band and Ljung-Box whiteness): quiet on a matching model, loud on a
 model error the coefficients absorb."""
 from __future__ import annotations

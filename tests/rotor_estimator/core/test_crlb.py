@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The Cramer-Rao bound code against independent finite differences and known regimes."""
 import numpy as np
 

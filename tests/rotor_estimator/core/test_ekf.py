@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The compiled EKF against independent implementations and its own statistical promises."""
 import numpy as np
 import pytest

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Properties of the one compiled EKF kernel (rotor_estimator.core.filter_kernel): the seed special case
 against the generalized model, Jacobians against finite differences, the two operation orders of the
 covariance prediction and of the update against textbook formulas, and a covariance that stays

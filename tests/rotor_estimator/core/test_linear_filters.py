@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Properties of the linear filters and cross-checks against the exact KF and filterpy."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Properties of the rigid rotor model (Miller & Howard Eqs. 2-6)."""
 import numpy as np
 

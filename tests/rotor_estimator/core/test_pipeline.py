@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Properties of the node's logic on plain arrays (rotor_estimator.core.pipeline)."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The pipeline never reports success on nothing: causes named, exit codes, the rig's speed limit,
 divergence kept visible, and accounting balanced at every instant."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Properties of the keyphasor tracker (rotor_estimator.core.tachometer)."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Sim-to-real diagnosis: effect parameter recovery, clean controls, stable ranking, report and CLI."""
 from __future__ import annotations
 
@@ -72,12 +74,14 @@ CASES = [
     ("pedestal", HiddenEffects(pedestal=(2.0, 2.0e6, 2 * 0.05 * math.sqrt(2.0e6 * 2.0))), True,
      lambda f: abs(f.physical["pedestal_frequency_hz"] / (math.sqrt(1e6) / (2 * math.pi)) - 1) < 0.1),
     ("shaft_bending", HiddenEffects(bending=(600.0, 0.02, 1.0)), False,
-     lambda f: abs(f.physical["bending_frequency_hz"] / 600.0 - 1) < 0.05 and abs(f.physical["modal_mass_kg"] - 1) < 0.2),
+     lambda f: (abs(f.physical["bending_frequency_hz"] / 600.0 - 1) < 0.05
+                and abs(f.physical["modal_mass_kg"] - 1) < 0.2)),
     ("probe_gain_orientation", HiddenEffects(gain=(0.03, -0.02, 0.01, 0.02), orientation_rad=(0.02, -0.01, 0.03, 0.0)),
      # per-probe gain and angle trade off against the 8 coefficients (a common gain ~ a softer bearing):
      # each within 3 of its reported std, and those std small enough to be useful (2 % and 1.5 deg)
      True, lambda f: _within(f, {**{f"gain_error_{c}": g for c, g in zip(CHANNELS, (0.03, -0.02, 0.01, 0.02))},
-                                 **{f"angle_error_{c}_deg": math.degrees(a) for c, a in zip(CHANNELS, (0.02, -0.01, 0.03, 0.0))}},
+                                 **{f"angle_error_{c}_deg": math.degrees(a)
+                                    for c, a in zip(CHANNELS, (0.02, -0.01, 0.03, 0.0))}},
                                 {"gain": 0.02, "angle": 1.5})),
     ("timing_skew", HiddenEffects(skew_s=(20e-6, -12e-6, 30e-6)), True,
      lambda f: np.allclose([f.physical[f"skew_{c}_s"] * 1e6 for c in ("yp1", "xp2", "yp2")], [20.0, -12.0, 30.0],
@@ -195,7 +199,8 @@ def test_data_accounting_counts_each_left_out_sample_and_warns_without_an_impact
     ctx = SimpleNamespace(shaft=SimpleNamespace(valid=valid), t_s=t, mask=valid & np.all(np.isfinite(probes), axis=1))
     rec = RigRecording(np.arange(n) * 50_000, probes, np.array([0]), np.zeros((n, 2)))
     d = data_accounting(rec, ctx)
-    assert (d["samples"], d["non_finite_probe_samples"], d["outside_tachometer_span_samples"], d["impacts"]) == (n, 3, 300, 0)
+    counts = (d["samples"], d["non_finite_probe_samples"], d["outside_tachometer_span_samples"], d["impacts"])
+    assert counts == (n, 3, 300, 0)
     assert d["samples_used"] == n - 300 - 3 and d["warm_up_samples"] == 200
     assert len(d["warnings"]) == 3 and d["warnings"][-1] == NO_IMPACT_WARNING
     force = np.zeros((n, 2))

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Effects: a structural effect carries its partner's force (pedestal carrier), checked against its limits
 and against the independent RK4 effect simulator."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Coupled flexible-shaft effect: equivalent beam, rigid limit, FE cross-check, self-recovery."""
 from __future__ import annotations
 
@@ -86,7 +88,7 @@ def test_rigid_limit_equals_the_nominal_model(control):
 
 
 def test_coupled_model_matches_the_fe_rotor_package():
-    """Eigenvalues at speed vs :mod:`rotor_estimator.core.flexible` (Timoshenko FE, all DOFs) for a slender shaft + disk."""
+    """Eigenvalues at speed vs :mod:`rotor_estimator.core.flexible` (Timoshenko FE, all DOFs), slender shaft + disk."""
     from rotor_estimator.core.config import RigConfig
     from rotor_estimator.core.flexible import assemble, rotor_from_mapping
     from rotor_estimator.core.flexible.modal import state_matrices

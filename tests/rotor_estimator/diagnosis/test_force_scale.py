@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """A wrong hammer sensitivity (which the filter's innovations cannot show) is found by `diagnose`."""
 from __future__ import annotations
 

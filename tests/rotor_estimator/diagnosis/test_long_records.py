@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """A long record is diagnosed in bounded memory and time: the fits run on one reported window."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Ranking: pairs composed in physical order, unstable starts avoided, both members of a pair found."""
 from __future__ import annotations
 
@@ -38,7 +40,9 @@ def test_stability_check_rejects_negative_damping():
     """A coefficient set with negative direct damping is unstable (a refit must not start there)."""
     rig = load_rig_file().rig
     r = rig.true_coefficients.as_array()
-    ctx = SimpleNamespace(mats=__import__("rotor_estimator.core.model", fromlist=["rotor_matrices"]).rotor_matrices(rig),
+    from rotor_estimator.core.model import rotor_matrices
+
+    ctx = SimpleNamespace(mats=rotor_matrices(rig),
                           mean_speed_rad_s=rig.speed_rad_s)
     assert _stable(ctx, r)
     bad = r.copy()

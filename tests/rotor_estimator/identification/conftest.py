@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Shared fixtures of the identification tests."""
 import numpy as np
 import pytest

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """plan -> simulate -> identify, closed: the commands `plan` prints make the test it recommends, and
 identifying from it meets the precision it promised."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Speed-dependent coefficients and non-identical bearings on synthetic data with a known truth."""
 import numpy as np
 
@@ -45,6 +47,7 @@ def test_sixteen_coefficients_from_a_sweep(seed_rig, arrays, true8, r0):
 def test_impacts_at_two_stations_separate_the_bearings_better_than_one(seed_rig, true8):
     c16 = np.concatenate([true8, true8])
     one = crlb16(seed_rig, multi_impact("1", 4, 0.53, 20000, discard_initial_s=0.03), c16, unknown_imbalance=False)
-    two = crlb16(seed_rig, multi_impact("2", 4, 0.53, 20000, positions_m=(-0.09, -0.09, 0.09, 0.09), discard_initial_s=0.03),
+    two = crlb16(seed_rig,
+                 multi_impact("2", 4, 0.53, 20000, positions_m=(-0.09, -0.09, 0.09, 0.09), discard_initial_s=0.03),
                  c16, unknown_imbalance=False)
     assert np.median(two.std / one.std) < 1.0

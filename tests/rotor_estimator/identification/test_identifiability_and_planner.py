@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Identifiability report and excitation planner."""
 import argparse
 import json
@@ -85,8 +87,8 @@ def test_bench_identification_json_keys(capsys):
 
     parser = argparse.ArgumentParser()
     bench_cli.add_parser(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["bench", "identification", "--runs", "2", "--only", "imbalance+impact", "--methods", "ekf",
-                              "batch-ml", "--json", "--no-progress"])
+    args = parser.parse_args(["bench", "identification", "--runs", "2", "--only", "imbalance+impact",
+                              "--methods", "ekf", "batch-ml", "--json", "--no-progress"])
     assert args.func(args) == 0
     rows = json.loads(capsys.readouterr().out)
     assert len(rows) == 16

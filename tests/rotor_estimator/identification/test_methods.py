@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Estimators: the batch fit is efficient (planner CRLB = empirical spread), the UKF matches filterpy's,
 the smoother does not increase the error."""
 import numpy as np

@@ -1,5 +1,10 @@
-"""The generalized model against the core simulator and the core CRLB (the filter kernel's own properties,
-including the seed special case against the generalized model, are in tests/rotor_estimator/core/test_filter_kernel.py)."""
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
+"""The generalized model against the core simulator and the core CRLB.
+
+The filter kernel's own properties, including the seed special case against the generalized model,
+are in tests/rotor_estimator/core/test_filter_kernel.py.
+"""
 
 import numpy as np
 import pytest

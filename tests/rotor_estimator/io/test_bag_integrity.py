@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Nothing read from or written to a bag is lost silently: CRCs, damage detection and localization,
 --salvage, and all-or-nothing writes (no normal-looking partial bag after an error or Ctrl-C)."""
 from __future__ import annotations
@@ -17,7 +19,7 @@ from mcap.stream_reader import StreamReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 
 import msg_adapters as ma
-from rotor_estimator.io.bags import (BagWriter, bag_damage, iter_bag_messages, read_input_bag, write_input_bag)
+from rotor_estimator.io.bags import (BagWriter, bag_damage, read_input_bag, write_input_bag)
 from rotor_estimator.core.errors import BagError
 from rotor_estimator.core.recording import RigRecording
 
@@ -155,8 +157,9 @@ def test_sigint_during_replay_out_leaves_no_partial_output_bag(good_bag, tmp_pat
     """Ctrl-C while `replay --out` writes: exit 130, no output bag and no staging directory left
     (before: a normal-looking bag with a third of the estimates, and a rerun failed 'already exists')."""
     out = tmp_path / "estimates"
-    proc = subprocess.Popen([sys.executable, "-m", "rotor_estimator.cli.main", "replay", str(good_bag), "--out", str(out),
-                             "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "rotor_estimator.cli.main", "replay", str(good_bag),
+                             "--out", str(out), "--no-progress"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while not list(tmp_path.glob(".estimates.partial-*")) and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.02)

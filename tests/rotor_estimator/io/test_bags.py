@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Bag I/O: RigRecording <-> MCAP rosbag2 bag, streaming, outputs, and broken bags."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """DAQ import: real exports (volts, 45-degree probes, pre-trigger times, raw keyphasor, HDF5) become the
 right recording in metres and the rig frame; anything that would give wrong numbers is refused."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Report and plot writers never follow symbolic links (rotor_estimator.io.safe_write policy): a link
 at a file name is replaced and its target left untouched; a linked output directory is refused."""
 from __future__ import annotations

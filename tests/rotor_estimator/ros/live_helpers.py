@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Helpers shared by the live rclpy tests: polling with a timeout and an isolated DDS domain."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The live node survives the unexpected and says what it dropped (real rclpy, no spinning needed)."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The launch files start real entry points with parameters the nodes declare, of the declared
 types (launch/launch_ros are replaced by recording stand-ins: they are not pip-installable)."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Live: simulator node -> estimator node through real rclpy (Fast DDS) in this process.
 
 Own Context on a random ROS_DOMAIN_ID, one executor thread per node, timeouts everywhere,

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """The documented parameters file agrees with the node's declared parameters (nodes.params); it
 works for a renamed or namespaced node; integers for doubles are accepted and bad values are one line."""
 from __future__ import annotations

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Live virtual sensing through real rclpy: sensor blocks in, station estimates out.
 
 Own Context on a random ROS_DOMAIN_ID, one executor thread, timeouts everywhere and a

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Virtual sensing: calibrated intervals on model-consistent data, honest flags otherwise, CLI."""
 from __future__ import annotations
 

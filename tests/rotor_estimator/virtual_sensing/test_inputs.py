@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Virtual sensing I/O: multi-sensor bags <-> arrays, station messages, CLI --bag/--report/--out-bag."""
 from __future__ import annotations
 

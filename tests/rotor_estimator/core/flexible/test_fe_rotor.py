@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """FE rotor: analytic beam frequencies, gyroscopic sign, ROSS cross-check, file validation."""
 from __future__ import annotations
 

@@ -1,3 +1,5 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
 """Assumed-mode reduction (Appendix A of Neisi et al.) and the state-space output maps."""
 from __future__ import annotations
 
