@@ -7,13 +7,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from rotor_estimator.core.config import RigFile
 from rotor_estimator.core.model import imbalance_force, impact_force, rotor_matrices
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.core.simulator import Impact
-from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, shaft_track, simulate_nominal
+from rotor_estimator.diagnosis.context import fit_nominal, shaft_track
 from rotor_estimator.diagnosis.linsim import SpeedSchedule
 
 #: Start-up transient left out of the gap figures, s.
@@ -59,17 +58,5 @@ def nominal_unabsorbed_rms(recording: RigRecording, rig, starts, *, max_nfev: in
     u_s = imbalance_force(mats, shaft.angle_rad, shaft.speed_rad_s, shaft.accel_rad_s2)
     u_z = impact_force(mats, recording.impact_force_n)
 
-    def residual(p):
-        yn, _, _ = simulate_nominal(rig, mats, p * COEFFICIENT_SCALE, t, shaft, schedule, u_s, u_z, h)
-        e = (y - yn)[mask]
-        return (e - e.mean(axis=0)).ravel() * 1e6
-
-    best = float("inf")
-    for r0 in starts:
-        try:
-            res = least_squares(residual, np.asarray(r0, float) / COEFFICIENT_SCALE, method="lm",
-                                diff_step=1e-4, max_nfev=max_nfev * 9)
-        except (ValueError, np.linalg.LinAlgError):
-            continue
-        best = min(best, float(np.sqrt(2 * res.cost / res.fun.size)) * 1e-6)
-    return best
+    res = fit_nominal(rig, mats, t, y, mask, shaft, schedule, u_s, u_z, h, starts, max_nfev=max_nfev)
+    return float("inf") if res is None else float(np.sqrt(2 * res.cost / res.fun.size)) * 1e-6

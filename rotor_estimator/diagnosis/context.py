@@ -177,8 +177,31 @@ def with_coefficients(ctx: "FitContext", coefficients: np.ndarray) -> "FitContex
     return replace(ctx, coefficients=r, y_nom_m=y_nom, v_nom_m_s=v_nom, z_nom_m=z_nom, _cache={})
 
 
-def _project_dc(e: np.ndarray) -> np.ndarray:
-    return e - e.mean(axis=0)
+def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np.ndarray, shaft: ShaftTrack,
+                schedule: SpeedSchedule, u_smooth: np.ndarray, u_step: np.ndarray, h_s: float, starts, *,
+                max_nfev: int, x_scale: float | None = None):
+    """The nominal output-error fit: Levenberg-Marquardt over the 8 coefficients of Eq. 2, re-simulated by
+    :func:`simulate_nominal`, on the output error of ``rows`` with each channel's mean (the probe's DC gap)
+    projected out, in micrometres (so that the LM tolerances mean something). Best of ``starts`` (N/m and
+    N*s/m; non-finite or failing starts are skipped); ``None`` when none converges. ``max_nfev`` counts
+    Jacobians (9 evaluations each). ``x_scale``: scipy's (``None``, its default, or 1.0)."""
+    def residual(p):
+        yn, _, _ = simulate_nominal(rig, mats, p * COEFFICIENT_SCALE, t_s, shaft, schedule, u_smooth, u_step, h_s)
+        e = (y_m - yn)[rows]
+        return (e - e.mean(axis=0)).ravel() * 1e6
+
+    best = None
+    for r0 in starts:
+        p0 = np.asarray(r0, dtype=float) / COEFFICIENT_SCALE
+        if not np.all(np.isfinite(p0)):
+            continue
+        try:
+            res = least_squares(residual, p0, method="lm", x_scale=x_scale, diff_step=1e-4, max_nfev=max_nfev * 9)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if best is None or res.cost < best.cost:
+            best = res
+    return best
 
 
 @single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
@@ -216,22 +239,8 @@ def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConf
     lp = est.last_pass
 
     # 2. output-error refinement (DC projected out)
-    def residual(p):
-        r = p * COEFFICIENT_SCALE
-        yn, _, _ = simulate_nominal(rig, mats, r, t, shaft, schedule, u_s, u_z, h)
-        return _project_dc((y_clean - yn)[mask]).ravel() * 1e6  # micrometres: meaningful LM tolerances
-
-    starts = [r_ekf / COEFFICIENT_SCALE, config.initial_coefficients.as_array() / COEFFICIENT_SCALE]
-    best = None
-    for p0 in starts:
-        if not np.all(np.isfinite(p0)):
-            continue
-        try:
-            res = least_squares(residual, p0, method="lm", x_scale=1.0, diff_step=1e-4, max_nfev=max_nfev * 9)
-        except (ValueError, np.linalg.LinAlgError):
-            continue
-        if best is None or res.cost < best.cost:
-            best = res
+    best = fit_nominal(rig, mats, t, y_clean, mask, shaft, schedule, u_s, u_z, h,
+                       [r_ekf, config.initial_coefficients.as_array()], max_nfev=max_nfev, x_scale=1.0)
     if best is None:
         raise InputError("the nominal output-error fit failed from both the EKF estimate and r0")
     r_hat = best.x * COEFFICIENT_SCALE

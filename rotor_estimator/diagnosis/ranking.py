@@ -420,20 +420,11 @@ def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 
     model itself; this re-evaluates the nominal from there so that the improvement is not
     credited to the effect.
     """
-    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, simulate_nominal
+    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, fit_nominal
 
-    rows = ctx.mask
-
-    def fun(p):
-        yn, _, _ = simulate_nominal(ctx.rig, ctx.mats, p * COEFFICIENT_SCALE, ctx.t_s, ctx.shaft, ctx.schedule,
-                                     ctx.known_smooth_n, ctx.known_step_n, ctx.period_s)
-        e = (ctx.y_m - yn)[rows]
-        return (e - e.mean(axis=0)).ravel() * RESIDUAL_SCALE
-
-    try:
-        res = least_squares(fun, np.asarray(coefficients, float) / COEFFICIENT_SCALE, method="lm", diff_step=1e-4,
-                            max_nfev=polish_nfev * 9)
-    except (ValueError, np.linalg.LinAlgError):
+    res = fit_nominal(ctx.rig, ctx.mats, ctx.t_s, ctx.y_m, ctx.mask, ctx.shaft, ctx.schedule, ctx.known_smooth_n,
+                      ctx.known_step_n, ctx.period_s, [coefficients], max_nfev=polish_nfev)
+    if res is None:
         return float("inf"), np.asarray(coefficients, float)
     rss = float(np.sum(res.fun ** 2)) / RESIDUAL_SCALE ** 2
     return bic(rss, res.fun.size, NOMINAL_PARAMS), res.x * COEFFICIENT_SCALE
