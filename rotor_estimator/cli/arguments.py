@@ -10,8 +10,11 @@ used to end in a numpy traceback or a silent zero-pass run).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Any, Callable
+
+import numpy as np
 
 #: Help of --salvage, the same for every command that reads a bag.
 SALVAGE_HELP = ("use the intact part of a damaged bag (the messages lost are counted and reported on stderr); "
@@ -72,3 +75,12 @@ def progress_bar(total: int, desc: str, enabled: bool = True) -> Any:
     from tqdm import tqdm
 
     return tqdm(total=total, desc=desc, file=sys.stderr, disable=not enabled, leave=False)
+
+
+def json_default(value: Any) -> Any:
+    """``json.dumps(default=...)``: numpy scalars as numbers, NaN and infinities as ``null``."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    raise TypeError(type(value).__name__)

@@ -6,12 +6,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from rotor_estimator.cli import arguments as cli_types
 from rotor_estimator.cli.arguments import progress_bar
@@ -73,7 +71,7 @@ def cmd_bench_virtual_sensing(args: argparse.Namespace) -> int:
         return 2
     table = res.pop("_table")
     if args.json:
-        print(json.dumps(res, indent=2, default=_json_default))
+        print(json.dumps(res, indent=2, default=cli_types.json_default))
         return 0
     n = res["n_samples"]
     print(f"virtual-sensing bench: {res['rotor']}, {res['n_states']} states, {res['n_observations']} "
@@ -89,13 +87,6 @@ def cmd_bench_virtual_sensing(args: argparse.Namespace) -> int:
     print(table)
     return 0
 
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    raise TypeError(type(value).__name__)
 
 
 def add_virtual_sensing_bench(bench: Any) -> argparse.ArgumentParser:

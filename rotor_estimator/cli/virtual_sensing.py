@@ -271,7 +271,7 @@ def run_virtual_sensing(args: argparse.Namespace) -> int:
     if args.json:
         out = {"rotor": rotor.name, "data": source, "n_states": ss.n_states, "n_samples": int(len(t)),
                **({"bag": info} if info else {}), **report.to_dict()}
-        print(json.dumps(out, indent=2, default=_json_default))
+        print(json.dumps(out, indent=2, default=cli_types.json_default))
     else:
         print(f"rotor {rotor.name}: {ss.n_states} states ({ss.reduced.n_modes} modes), {len(t)} samples, "
               f"data: {source}")
@@ -289,13 +289,6 @@ def run_virtual_sensing(args: argparse.Namespace) -> int:
             print(f"station estimates written to {args.out_bag}")
     return 1 if (flagged and args.strict) else 0
 
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    raise TypeError(type(value).__name__)
 
 
 def _write_estimates(path: Path, estimates: list, confidence: float) -> None:
