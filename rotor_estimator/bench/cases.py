@@ -42,10 +42,11 @@ def random_impacts(rng, duration_s) -> tuple[Impact, ...]:
 def nominal_unabsorbed_rms(recording: RigRecording, rig, starts, *, max_nfev: int = 25) -> float:
     """RMS (m) of a noise-free record left after the diagnosis's own nominal output-error fit.
 
-    A cheap proxy of the realized nominal residual: the shaft track from the keyphasor
-    (as the diagnosis sees it), the exact-discretization re-simulation of
-    :mod:`.context` and a Levenberg-Marquardt fit of the 8 coefficients (DC projected
-    out) from each of ``starts``; the smallest residual wins. No EKF (the diagnosis's
+    A cheap proxy of the realized nominal residual: the shaft track from the keyphasor (as the
+    diagnosis sees it) and the diagnosis's own nominal fit,
+    :func:`~rotor_estimator.diagnosis.context.fit_nominal` (exact-discretization re-simulation,
+    Levenberg-Marquardt over the 8 coefficients, DC projected out), from each of ``starts``; the
+    smallest residual wins. No EKF (the diagnosis's
     EKF only supplies a start). ``recording.probes_m`` must be the clean signal.
     """
     shaft = shaft_track(recording)

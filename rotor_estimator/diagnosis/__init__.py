@@ -4,7 +4,7 @@
 
 No ROS imports (bags are read by :mod:`rotor_estimator.cli.diagnose`). Entry point:
 :func:`diagnose`; report: :func:`rotor_estimator.diagnosis.report.write_report`; blind cases:
-:mod:`rotor_estimator.bench.blind` (and :mod:`.ross_cases` when ROSS is installed).
+:mod:`rotor_estimator.bench.blind` (and :mod:`rotor_estimator.bench.ross_cases` when ROSS is installed).
 """
 from rotor_estimator.diagnosis.api import Diagnosis, diagnose
 from rotor_estimator.diagnosis.effects import EFFECT_NAMES, LIBRARY, effect_by_name

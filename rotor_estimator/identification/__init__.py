@@ -11,7 +11,7 @@ Pure numerics (no ROS). Modules:
 * :mod:`.batch_ml`, :mod:`.kalman`, :mod:`.methods` -- the estimators and the defaults;
 * :mod:`.speed_dependent`, :mod:`.bearings16` -- the extended models;
 * :mod:`.planner` -- CRLB of candidate tests and the recommendation;
-* :mod:`.identifiability` -- what the data received determine.
+* :mod:`rotor_estimator.core.identifiability` -- what the data received determine (shared with replay).
 """
 from rotor_estimator.core.identifiability import (IdentifiabilityReport, Thresholds, report_from_filter,
                                                   report_from_information)

@@ -8,7 +8,8 @@ speeds), hammer impacts (time, direction, force, axial station), optional trial
 weights (each adds one more record of the same profile with the weight attached: the
 classic influence-coefficient procedure) and the probe noise.
 
-:func:`simulate_design` integrates the generalized model (:mod:`._kernel`, RK4 with
+:func:`simulate_design` integrates the generalized model (:mod:`.passes` over
+:mod:`rotor_estimator.core.filter_kernel`, RK4 with
 ``substeps`` per sample, from rest at equilibrium like the core simulator) and returns
 one :class:`~.problem.Record` per run plus the noise-free truth. The shaft state of each
 record is the true one (planning) or read back through the tachometer from simulated
@@ -26,7 +27,7 @@ from rotor_estimator.core.config import RigConfig
 from rotor_estimator.core.errors import ConfigError
 from rotor_estimator.core.model import point_force_weights
 from rotor_estimator.core.simulator import Impact, Scenario
-from rotor_estimator.identification import passes as _kernel
+from rotor_estimator.identification import passes
 from rotor_estimator.identification.problem import CoefficientModel, Record, RigArrays
 
 RPM = 2.0 * math.pi / 60.0
@@ -276,7 +277,7 @@ def simulate_design(rig: RigConfig, design: TestDesign, *, coefficients: np.ndar
     out = []
     for i, trial_b in enumerate(trials):
         bvec = base_b + trial_b
-        states = _kernel.simulate_states(np.zeros(8), np.ascontiguousarray(theta, dtype=float), bvec,
+        states = passes.simulate_states(np.zeros(8), np.ascontiguousarray(theta, dtype=float), bvec,
                                          np.full(n_total - 1, dt), substeps, angle, speed, accel, fgen, cm.dmap(),
                                          cm.powers(), cm.speed_ref_rad_s, cm.speed_scale_rad_s, arrays.minv,
                                          arrays.gyro, arrays.wimb)

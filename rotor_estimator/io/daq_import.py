@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """DAQ recordings (CSV, NPZ, HDF5) -> a validated :class:`RigRecording`, refusing what would be wrong.
 
-Pure core: no ROS, no bag library (``rotor-estimator import`` writes the bag with :mod:`bagio`).
+Pure core: no ROS, no bag library (``rotor-estimator import`` writes the bag with :mod:`rotor_estimator.io.bags`).
 
 What a rig's data acquisition really exports, and how each is handled:
 
