@@ -111,6 +111,7 @@ def test_control_is_clean_and_budget_is_noise(rig_file):
     assert np.allclose(ctx.noise_std_m, 1e-6, rtol=0.1)
 
 
+@pytest.mark.slow
 def test_misalignment_gap_lies_in_2x_and_ranking_is_stable_across_seeds(rig_file):
     rig = rig_file.rig
     effects = HiddenEffects(misalignment_n=(6.0, -3.0, 2.0, 5.0))
@@ -126,6 +127,7 @@ def test_misalignment_gap_lies_in_2x_and_ranking_is_stable_across_seeds(rig_file
     assert winners == ["misalignment", "misalignment"]
 
 
+@pytest.mark.slow
 def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
     from rotor_estimator.cli.main import main
     from rotor_estimator.bench.blind import rig_file_yaml, save_recording

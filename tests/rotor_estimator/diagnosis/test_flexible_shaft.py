@@ -131,6 +131,7 @@ def test_coupled_model_matches_the_fe_rotor_package():
     assert np.all(np.abs(ours.real - ref.real) < 0.01 * np.abs(ref))          # decay rates
 
 
+@pytest.mark.slow
 def test_recovers_its_own_bending_frequency(control, rig_file):
     sim, ctx0 = control
     red = reduce_shaft(ctx0.rig)

@@ -50,6 +50,7 @@ def test_stability_check_rejects_negative_damping():
     assert not _stable(ctx, bad)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [31])
 def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
     """Two hidden effects (a 2X force and a 60-90 us channel skew): both are the top two, not runout.
@@ -79,6 +80,7 @@ def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
         assert 0 < std < 0.1 * math.hypot(c, s)
 
 
+@pytest.mark.slow
 def test_soft_pedestal_that_drags_the_nominal_fit_off_is_found_with_its_frequency():
     """A 60 Hz pedestal (below the running speed) drags the nominal fit into a basin with a negative kxx,
     about which the pedestal's first pass finds nothing; its joint refit from the prior must still reach
@@ -110,6 +112,7 @@ def test_held_out_check_accepts_a_tie_within_its_resolution_and_rejects_a_clear_
     assert not predicts_held_out(ref * 1.01, ref)
 
 
+@pytest.mark.slow
 def test_strong_misalignment_with_near_limit_skew_is_the_pair_not_runout():
     """A 250 N 2X force seen through probes skewed by up to 100 us (the skew's own gap 1.27x): both named.
 
