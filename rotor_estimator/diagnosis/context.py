@@ -18,6 +18,7 @@ re-estimated jointly with the effect (one Gauss-Newton step about the nominal fi
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -101,7 +102,7 @@ class FitContext:
     #: ``None`` is the rigid nominal of Eq. 2. A structural effect (pedestal) sets it for its pair partner.
     response_model: tuple | None = None
 
-    @property
+    @cached_property
     def sample_rate_hz(self) -> float:
         return 1.0 / float(np.median(np.diff(self.t_s)))
 

@@ -127,6 +127,22 @@ def steady_state(a: np.ndarray, b: np.ndarray, phasors: np.ndarray, speed_rad_s:
     return q
 
 
+def _cached_steady_state(build_a, b, phasors, speed_rad_s, angle0_rad, cache: dict | None) -> np.ndarray:
+    """:func:`steady_state` with the resolvents ``(j h Omega I - A)^-1 B`` kept in ``cache`` by speed."""
+    if cache is None:
+        return steady_state(build_a(speed_rad_s), b, phasors, speed_rad_s, angle0_rad)
+    key = ("resolvents", round(float(speed_rad_s), 6), phasors.shape[0])
+    if key not in cache:
+        a = build_a(speed_rad_s)
+        eye = np.eye(a.shape[0])
+        cache[key] = [np.linalg.solve(1j * h * speed_rad_s * eye - a, b) for h in range(phasors.shape[0])]
+    q = np.zeros(b.shape[0])
+    for h, (res, u_h) in enumerate(zip(cache[key], phasors)):
+        if np.any(u_h):
+            q += np.real((res @ u_h) * np.exp(1j * h * angle0_rad))
+    return q
+
+
 def _discretized_blocks(build_a: Callable[[float], np.ndarray], b: np.ndarray, h_s: float,
                         schedule: SpeedSchedule, cache: dict | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``Phi, Gamma1, Gamma2`` per speed block, (blocks, n, n), (blocks, n, m) twice; cached by speed."""
@@ -171,7 +187,7 @@ def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np
     if steady_start and np.any(u_smooth):
         w0 = float(schedule.speeds_rad_s[0])
         ph = _first_revolutions_phasors(u_smooth, angle_rad, w0, h_s)
-        q0 = steady_state(build_a(w0), b, ph, w0, float(angle_rad[0]))
+        q0 = _cached_steady_state(build_a, b, ph, w0, float(angle_rad[0]), cache)
     return _propagate(phi, g1, g2, np.ascontiguousarray(schedule.block_of_sample), u_smooth, u_step, q0,
                       np.ascontiguousarray(c, dtype=float))
 
