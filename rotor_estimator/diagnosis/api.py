@@ -16,10 +16,10 @@ import numpy as np
 from rotor_estimator.core.config import COEFFICIENT_NAMES_WITH_UNITS, EstimatorConfig, RigConfig
 from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.core.recording import RigRecording
-from rotor_estimator.diagnosis.context import WARMUP_S, FitContext, build_context
+from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, WARMUP_S, FitContext, build_context
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking,
-                                              nominal_solution, rank_effects)
+                                              nominal_solution, parameter_covariance, rank_effects)
 from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
 SCHEMA_VERSION = 3  # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance; 3: data
@@ -124,7 +124,8 @@ def _total(per_channel: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.asarray(per_channel) ** 2)))
 
 
-def _row(ctx: FitContext, label: str, prediction: np.ndarray, held_out: float, coefficients: np.ndarray) -> dict:
+def _row(ctx: FitContext, label: str, prediction: np.ndarray, held_out: float, coefficients: np.ndarray,
+         coefficients_std: np.ndarray) -> dict:
     e = (ctx.y_m - prediction)[ctx.mask]
     b = budget(ctx.t_s[ctx.mask], e, ctx.shaft.angle_rad[ctx.mask], ctx.shaft.speed_rad_s[ctx.mask],
                ctx.impact_force_n[ctx.mask], ctx.noise_std_m)
@@ -134,7 +135,8 @@ def _row(ctx: FitContext, label: str, prediction: np.ndarray, held_out: float, c
             "per_channel_rms_m": dict(zip(CHANNELS, _per_channel(ctx.y_m - prediction, ctx.mask))),
             "excess_band_rms_m": {k: bands.get(k, 0.0) for k in ("1X", "2X", "3X", "nonsync_peaks", "broadband")},
             "output_nis_mean": nis, "held_out_rms_m": held_out,
-            "coefficients": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, coefficients)))}
+            "coefficients": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, coefficients))),
+            "coefficients_std": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, coefficients_std)))}
 
 
 #: Longest stretch of a record the model fits run on (s). Their memory and time grow with the samples
@@ -187,7 +189,10 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     where = budget(ctx.t_s[ctx.mask], (ctx.y_m - sol0.prediction_m)[ctx.mask], ctx.shaft.angle_rad[ctx.mask],
                    ctx.shaft.speed_rad_s[ctx.mask], ctx.impact_force_n[ctx.mask], ctx.noise_std_m)
     innov = innovation_consistency(ctx.ekf_nis, ctx.ekf_innovation_m, ctx.ekf_innovation_std_m)
-    table = [_row(ctx, "nominal", sol0.prediction_m, ho0, ctx.coefficients)]
+    nominal_cov = parameter_covariance(ctx, np.zeros((ctx.t_s.size, 4, 0)), np.zeros((ctx.t_s.size, 4, 0)),
+                                       sol0.prediction_m)
+    nominal_std = np.sqrt(np.abs(np.diag(nominal_cov[:8, :8]))) * COEFFICIENT_SCALE
+    table = [_row(ctx, "nominal", sol0.prediction_m, ho0, ctx.coefficients, nominal_std)]
     shown = []
     if rk.best is not None:
         shown.append(("+ " + rk.best.name, rk.best))
@@ -197,7 +202,7 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     if rk.second is not None:
         shown.append(("+ " + rk.best.name + " + " + rk.second.name, rk.second))
     for label, fit in shown:
-        table.append(_row(ctx, label, fit.prediction_m, fit.held_out_rms_m, fit.coefficients))
+        table.append(_row(ctx, label, fit.prediction_m, fit.held_out_rms_m, fit.coefficients, fit.coefficients_std))
     data = data_accounting(recording, ctx)
     if window is not None:
         data["analysis_window"] = window

@@ -96,6 +96,49 @@ class Projector:
         return b
 
 
+def correlation_segment(ctx: FitContext) -> int:
+    """Welch segment of :func:`spectral_covariance`: four shaft revolutions in samples (at least 64), at most
+    a quarter of the fitted samples, so that the residual spectrum resolves the 1X-3X bands."""
+    per_rev = 2 * np.pi / max(ctx.mean_speed_rad_s, 1e-6) * ctx.sample_rate_hz
+    return int(min(max(64, round(4 * per_rev)), max(int(ctx.mask.sum()) // 4, 16)))
+
+
+def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int) -> np.ndarray:
+    """Covariance of least-squares parameters when the residual is not white (a sandwich estimate).
+
+    ``design`` (T, C, p) and ``residual`` (T, C): T consecutive samples of C channels. The residual is
+    taken as stationary with the C x C cross-spectral density ``S(nu)`` of Welch's method (segments of
+    ``segment`` samples), so ``cov = B^-1 (int A(nu)^H S(nu) A(nu) dnu) B^-1`` with ``B = A^T A`` and
+    ``A(nu)`` the design's Fourier transform: the meat weighs each parameter's columns by the residual
+    power in their own band (a 1X parameter by the 1X misfit). With a white residual it reduces to
+    ``sigma^2 B^-1``. Unlike a Newey-West sum over lags of the scores, it is not biased low by the
+    fitted sinusoids (a long lag window on 1X-modulated scores halved the std of a fit with 16 columns).
+    """
+    from scipy.signal import csd
+
+    t_n, n_ch, p = design.shape
+    a = design.reshape(-1, p)
+    norm = np.sqrt((a * a).sum(axis=0))
+    norm[norm == 0] = 1.0
+    bread = np.linalg.pinv((a / norm).T @ (a / norm), rcond=1e-12, hermitian=True) / np.outer(norm, norm)
+    m = int(2 ** np.ceil(np.log2(2 * t_n)))
+    nu = np.fft.fftfreq(m)
+    seg = int(min(segment, t_n))
+    cross = np.zeros((m, n_ch, n_ch), dtype=complex)
+    for i in range(n_ch):
+        for j in range(i, n_ch):
+            f, s_ij = csd(residual[:, i], residual[:, j], fs=1.0, nperseg=seg, return_onesided=False,
+                          scaling="density", detrend=False)
+            order = np.argsort(f)
+            s_m = np.interp(nu, f[order], s_ij.real[order]) + 1j * np.interp(nu, f[order], s_ij.imag[order])
+            cross[:, i, j] = s_m
+            cross[:, j, i] = np.conj(s_m)
+    spec = np.fft.fft(design, n=m, axis=0)  # (m, C, p)
+    # int A^H S A dnu with A(nu) = sum_t a_t e^{-2 pi i nu t}; csd's S_ij = sum_k E[x_i(t) x_j(t+k)] e^{-2 pi i nu k}
+    meat = np.einsum("fcp,fcd,fdq->pq", spec, cross, spec.conj()).real / m
+    return bread @ meat @ bread
+
+
 def bic(rss_m2: float, n_obs: int, n_params: int) -> float:
     """Bayesian information criterion of a Gaussian output error with unknown variance."""
     return float(n_obs * np.log(max(rss_m2, 1e-300) / n_obs) + n_params * np.log(n_obs))

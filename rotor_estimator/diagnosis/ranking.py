@@ -26,10 +26,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rotor_estimator.core.linear_filters import single_threaded_blas
-from rotor_estimator.diagnosis.context import FitContext
+from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, FitContext
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
-from rotor_estimator.diagnosis.fitting import (LinearSolution, Projector, bic, coefficients_after, held_out_rms,
-                                              solve_linear)
+from rotor_estimator.diagnosis.fitting import (LinearSolution, Projector, bic, coefficients_after, correlation_segment,
+                                              spectral_covariance, held_out_rms, solve_linear)
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
 SIGNIFICANCE_DELTA_BIC = 30.0
@@ -107,6 +107,8 @@ class EffectFit:
     cols: np.ndarray | None = field(repr=False, default=None)
     ctx: FitContext | None = field(repr=False, default=None)
     effect: Effect | None = field(repr=False, default=None)
+    #: (8,) standard deviation of :attr:`coefficients` (SI), sandwich (:func:`parameter_covariance`)
+    coefficients_std: np.ndarray = field(repr=False, default_factory=lambda: np.full(8, np.nan))
 
     def summary(self) -> dict:
         return {"name": self.name, "delta_bic": round(self.delta_bic, 2), "bic": round(self.bic, 2),
@@ -237,8 +239,18 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     k_base = sum(b.n_params for b in base)
     k_eff = effect.n_params(ctx)
     lin = sol.theta[b_cols.shape[2]:]
-    lin_cov = sol.theta_cov[b_cols.shape[2]:, b_cols.shape[2]:]
+    # calibrated uncertainty: the joint (sandwich) covariance of every parameter, the nonlinear ones
+    # included through their output sensitivities, replaces the white-residual one
+    nl_sens = _nl_sensitivities(ctx, effect, nl, base, fixed_base, base_effects, sol, all_off, all_cols) \
+        if nl.size else np.zeros((n, 4, 0))
+    cov = parameter_covariance(ctx, all_cols, nl_sens, sol.prediction_m)
+    k_lin = 12 + all_cols.shape[2]
+    coefficients_std = np.sqrt(np.abs(np.diag(cov[:8, :8]))) * COEFFICIENT_SCALE
+    lin_cov = cov[12 + b_cols.shape[2]:k_lin, 12 + b_cols.shape[2]:k_lin]
+    base_lin_cov = cov[12:12 + b_cols.shape[2], 12:12 + b_cols.shape[2]]
     lin_std = np.sqrt(np.abs(np.diag(lin_cov))) if lin.size else np.zeros(0)
+    if nl.size:
+        nl_std = np.sqrt(np.abs(np.diag(cov[k_lin:, k_lin:])))
     physical = effect.physical(nl, lin)
     physical_std = _physical_std(effect, nl, nl_std, lin, lin_cov)
     resid = (ctx.y_m - sol.prediction_m)[ctx.mask]
@@ -255,8 +267,52 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
                      held_out_rms_m=held_out_rms(ctx, all_off, all_cols),
                      residual_rms_m=np.sqrt(np.mean(resid ** 2, axis=0)), coefficients=coefficients_after(ctx, sol),
                      prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect,
-                     base_lin=sol.theta[:b_cols.shape[2]],
-                     base_lin_cov=sol.theta_cov[:b_cols.shape[2], :b_cols.shape[2]], lin_cov=lin_cov)
+                     base_lin=sol.theta[:b_cols.shape[2]], base_lin_cov=base_lin_cov, lin_cov=lin_cov,
+                     coefficients_std=coefficients_std)
+
+
+def parameter_covariance(ctx: FitContext, cols: np.ndarray, nl_sensitivity: np.ndarray,
+                         prediction_m: np.ndarray) -> np.ndarray:
+    """Covariance of ``[dr (8, scaled), DC (4), linear gains (k), nonlinear (q)]`` of a fit about ``ctx``.
+
+    The design is the fit's own linearization (the coefficient sensitivity ``J``, the DC columns, the
+    effect's columns and ``nl_sensitivity``, the output's derivative in each nonlinear parameter) and the
+    residual is the fit's; :func:`~rotor_estimator.diagnosis.fitting.spectral_covariance` makes it honest
+    when the residual is not white (a model that leaves a 1X or impact-shaped misfit).
+    """
+    rows = ctx.mask
+    design = np.concatenate([_stack([ctx.jacobian, _dc_columns(ctx.t_s.size), cols], ctx.t_s.size),
+                             nl_sensitivity], axis=2)[rows]
+    return spectral_covariance(design, (ctx.y_m - prediction_m)[rows], correlation_segment(ctx))
+
+
+def _dc_columns(n: int) -> np.ndarray:
+    dc = np.zeros((n, 4, 4))
+    for c in range(4):
+        dc[:, c, c] = 1.0
+    return dc
+
+
+def _nl_sensitivities(ctx: FitContext, effect: Effect, nl: np.ndarray, base, fixed_base, base_effects,
+                      sol: LinearSolution, off0: np.ndarray | None, cols0: np.ndarray) -> np.ndarray:
+    """Forward differences ``d prediction / d nl_i`` (N, 4, q) at the fitted gains, inside the bounds."""
+    lo, hi = effect.nl_bounds(ctx)
+    pred0 = (0.0 if off0 is None else off0) + np.einsum("nck,k->nc", cols0, sol.theta)
+    out = np.zeros((ctx.t_s.size, 4, nl.size))
+    for i in range(nl.size):
+        step = 1e-4 * max(abs(float(nl[i])), 1e-2)
+        if nl[i] + step > hi[i]:
+            step = -step
+        p = nl.copy()
+        p[i] += step
+        b_off, b_cols, off, cols = _compose(ctx, effect, p, base_effects, *_parts(ctx, effect, p, base, fixed_base))
+        o = _sum([b_off, off])
+        c = _stack([b_cols, cols], ctx.t_s.size)
+        if c.shape[2] != sol.theta.size:
+            continue
+        pred = (0.0 if o is None else o) + np.einsum("nck,k->nc", c, sol.theta)
+        out[:, :, i] = (pred - pred0) / step
+    return np.where(np.isfinite(out), out, 0.0)
 
 
 def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
@@ -270,7 +326,7 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     are free in :func:`scipy.optimize.least_squares`, the linear ones projected out, and
     the fit is kept only when its BIC improves.
     """
-    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, recentered, with_coefficients
+    from rotor_estimator.diagnosis.context import recentered, with_coefficients
 
     n = ctx.t_s.size
     n_nl = len(effect.nl_names)
@@ -420,7 +476,7 @@ def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 
     model itself; this re-evaluates the nominal from there so that the improvement is not
     credited to the effect.
     """
-    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, fit_nominal
+    from rotor_estimator.diagnosis.context import fit_nominal
 
     res = fit_nominal(ctx.rig, ctx.mats, ctx.t_s, ctx.y_m, ctx.mask, ctx.shaft, ctx.schedule, ctx.known_smooth_n,
                       ctx.known_step_n, ctx.period_s, [coefficients], max_nfev=polish_nfev)

@@ -172,6 +172,15 @@ def markdown(d: Diagnosis, summary: dict) -> str:
                      f"{c['kyy_N_per_m']:.4g} | {c['cxx_N_s_per_m']:.4g} | {c['cyy_N_s_per_m']:.4g} |")
     lines += ["", "Band columns are RMS in excess of the noise (um); output NIS is the mean of "
                   "sum_c e_c^2 / sigma_c^2 (4 when the model explains the data to the noise)."]
+    names = list(summary["table"][0]["coefficients"])
+    lines += ["", "Bearing coefficients, value +- std (N/m, N*s/m; the std is a sandwich estimate that allows for a "
+                  "residual that is not white):", "",
+              "| model | " + " | ".join(n.split("_")[0] for n in names) + " |",
+              "|---|" + "---|" * len(names)]
+    for r in summary["table"]:
+        std = r.get("coefficients_std", {})
+        lines.append(f"| {r['model']} | " + " | ".join(
+            f"{r['coefficients'][n]:.4g} +- {std.get(n, float('nan')):.2g}" for n in names) + " |")
     return "\n".join(lines) + "\n"
 
 
