@@ -41,7 +41,9 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     warnings.simplefilter("ignore", RuntimeWarning)
     rig_file = load_rig_file(args.rig)
     recording = _load(Path(bag_from_args(args)), args.salvage)
-    d = diagnose(recording, rig_file.rig, rig_file.estimator, passes=args.passes)
+    stage = None if args.no_progress else (lambda text: print(f"rotor-estimator: diagnose: {text}", file=sys.stderr,
+                                                                flush=True))
+    d = diagnose(recording, rig_file.rig, rig_file.estimator, passes=args.passes, progress=stage)
     summary = write_report(d, args.report) if args.report else d.summary()
     for text in summary["data"]["warnings"]:
         print(f"rotor-estimator: warning: {text}", file=sys.stderr)
@@ -50,6 +52,16 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     else:
         print(f"best effect: {summary['best_effect']}"
               + (f" (+ {summary['second_effect']})" if summary["second_effect"] != "none" else ""))
+        tie = summary["tie"]
+        if tie:
+            print(f"tie: {' and '.join(tie['effects'])} explain the data equally well (misfit -2 ln L "
+                  f"{tie['misfit_difference']:+.1f} with {tie['parameters'][1]} vs {tie['parameters'][0]} parameters); "
+                  "to separate them: "
+                  + "; ".join(f"{m['measurement']} ({m['how']})" for m in tie["separating_measurements"][:2]))
+        gap_left = summary["unexplained"]
+        if gap_left:
+            print(f"unexplained: {gap_left['residual_over_noise']:.2f} x noise remains after the verdict, mostly "
+                  f"{gap_left['dominant_band']} on {gap_left['dominant_channel']}")
         w = summary["where"]
         print(f"gap: residual RMS {summary['residual_rms_before'] * 1e6:.3f} um = {w['gap_ratio']:.2f} x noise; "
               f"dominant channel {w['dominant_channel']}, band {w['dominant_band']}")

@@ -18,11 +18,18 @@ from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, WARMUP_S, FitContext, build_context
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
-from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, EffectFit, Ranking,
-                                              nominal_solution, parameter_covariance, rank_effects)
+from rotor_estimator.diagnosis.effects.base import separating_measurements
+from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, TIE_LR_QUANTILE,
+                                              TIE_MARGIN_BIC, EffectFit, Ranking, misfit, nominal_solution,
+                                              parameter_covariance, rank_effects)
 from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
-SCHEMA_VERSION = 3  # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance; 3: data
+#: Residual RMS over noise RMS above which the gap left after the verdict is reported as unexplained.
+UNEXPLAINED_RATIO = 1.2
+
+# 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance; 3: data;
+# 4: verdict_set, tie, unexplained, the table's coefficients_std
+SCHEMA_VERSION = 4
 
 NO_IMPACT_WARNING = ("no impact in the record: the bearing coefficients are then fitted to the synchronous "
                      "response alone and absorb most effects (unbalance, keyphasor offset, runout, probe gain, "
@@ -50,6 +57,46 @@ class Diagnosis:
         """The final model: winner, plus the second effect when one was found."""
         return self.ranking.second or self.ranking.best
 
+    @property
+    def verdict_set(self) -> list[str]:
+        """The verdict's effects: the winner (and the pair's second), or the tied set; ``[]`` for none."""
+        rk = self.ranking
+        if rk.best is None:
+            return []
+        return [rk.best.name] + ([rk.second.name] if rk.second else [f.name for f in rk.tied])
+
+    def tie(self) -> dict | None:
+        """``None`` when the data decide; else the tied effects, their evidence margin and the measurements
+        that would separate them (each effect's declared response to each)."""
+        rk = self.ranking
+        if rk.best is None or not rk.tied:
+            return None
+        other = rk.tied[0]
+        return {"effects": [rk.best.name, other.name],
+                "margin_delta_bic": round(rk.best.delta_bic - other.delta_bic, 2),
+                "misfit_difference": round(misfit(other) - misfit(rk.best), 2),
+                "parameters": [rk.best.n_params, other.n_params],
+                "rule": f"-2 ln L within {TIE_MARGIN_BIC:g}, or within the chi-square {TIE_LR_QUANTILE:g} quantile of "
+                        "the extra parameters when the richer fits better",
+                "separating_measurements": separating_measurements(rk.best.effect, other.effect)
+                if rk.best.effect is not None and other.effect is not None else []}
+
+    def unexplained(self) -> dict | None:
+        """The gap left after the verdict when it is still over :data:`UNEXPLAINED_RATIO` x noise: where it lies
+        (band, channel), so a gap of a kind not in the library is described rather than forced onto a name."""
+        ctx = self.ctx
+        pred = self.after_fit.prediction_m if self.after_fit else self.nominal_prediction_m
+        e = (ctx.y_m - pred)[ctx.mask]
+        ratio = float(np.sqrt(np.mean(e ** 2) / np.mean(ctx.noise_std_m ** 2)))
+        if ratio < UNEXPLAINED_RATIO:
+            return None
+        b = budget(ctx.t_s[ctx.mask], e, ctx.shaft.angle_rad[ctx.mask], ctx.shaft.speed_rad_s[ctx.mask],
+                   ctx.impact_force_n[ctx.mask], ctx.noise_std_m)
+        return {"residual_over_noise": ratio, "dominant_band": b["dominant_band"],
+                "dominant_channel": b["dominant_channel"],
+                "bands": {r["band"]: {"rms_m": r["rms_m"], "share": r["share"]} for r in b["bands"]},
+                "nonsync_peaks_hz": [p["frequency_hz"] for p in b["nonsync_peaks"]]}
+
     def summary(self) -> dict:
         ctx, rk = self.ctx, self.ranking
         before = _rms(ctx.y_m - self.nominal_prediction_m, ctx.mask)
@@ -76,6 +123,9 @@ class Diagnosis:
             "second_effect": rk.second.name if rk.second else "none",
             "second_effect_fit": rk.second.summary() if rk.second else None,
             "top_two": top2,
+            "verdict_set": self.verdict_set,
+            "tie": self.tie(),
+            "unexplained": self.unexplained(),
             "residual_rms_before": float(before),
             "residual_rms_after": float(after),
             "residual_rms_before_per_channel_m": dict(zip(CHANNELS, _per_channel(ctx.y_m - self.nominal_prediction_m,
@@ -170,11 +220,13 @@ def analysis_window(recording: RigRecording, max_s: float = MAX_FIT_WINDOW_S) ->
 
 @single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
 def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *, passes: int = 2,
-             library: tuple[Effect, ...] = LIBRARY, max_fit_window_s: float = MAX_FIT_WINDOW_S) -> Diagnosis:
+             library: tuple[Effect, ...] = LIBRARY, max_fit_window_s: float = MAX_FIT_WINDOW_S,
+             progress=None) -> Diagnosis:
     """Fit the nominal model, budget its residual, rank the candidate effects, tabulate before/after.
 
     A record longer than ``max_fit_window_s`` is diagnosed on one window of it (see
-    :func:`analysis_window`); ``summary()['data']['analysis_window']`` says which."""
+    :func:`analysis_window`); ``summary()['data']['analysis_window']`` says which. ``progress``, when given,
+    is called with one line of text at each stage."""
     full_n = len(recording)
     start, stop, why = analysis_window(recording, max_fit_window_s)
     window = None
@@ -183,9 +235,11 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
         window = {"start_s": float(t[start] - t[0]), "stop_s": float(t[stop - 1] - t[0]),
                   "record_s": float(t[-1] - t[0]), "rule": why}
         recording = recording.slice(start, stop)
+    say = progress or (lambda text: None)
+    say(f"nominal fit: EKF ({passes} passes), then output-error refinement of the 8 coefficients")
     ctx = build_context(recording, rig, config, passes=passes)
     sol0, _, ho0 = nominal_solution(ctx)
-    rk = rank_effects(ctx, library)
+    rk = rank_effects(ctx, library, progress=say)
     where = budget(ctx.t_s[ctx.mask], (ctx.y_m - sol0.prediction_m)[ctx.mask], ctx.shaft.angle_rad[ctx.mask],
                    ctx.shaft.speed_rad_s[ctx.mask], ctx.impact_force_n[ctx.mask], ctx.noise_std_m)
     innov = innovation_consistency(ctx.ekf_nis, ctx.ekf_innovation_m, ctx.ekf_innovation_std_m)

@@ -33,6 +33,17 @@ from rotor_estimator.diagnosis.fitting import (LinearSolution, Projector, bic, c
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
 SIGNIFICANCE_DELTA_BIC = 30.0
+#: Two significant effects are a tie when the data do not tell them apart, only the parameter count would
+#: (BIC's ``k ln n``), and that is no physical prior (a rig always has some residual unbalance; a keyphasor
+#: offset of one parameter is not likelier): the verdict is then the set, with the measurements that separate
+#: them. With equal parameter counts the tie margin on ``-2 ln L`` (:func:`misfit`) is this value (Kass &
+#: Raftery 1995: under 10 is less than "very strong"); see :func:`indistinguishable` for unequal counts. At
+#: one constant speed a keyphasor offset and a residual unbalance are nearly the same signal, and such a pair
+#: was decided by noise.
+TIE_MARGIN_BIC = 10.0
+#: Likelihood-ratio level for the richer effect's better fit to count as real (chi-square with the extra
+#: parameters as degrees of freedom).
+TIE_LR_QUANTILE = 0.99
 #: Nominal parameters counted in the BIC: 8 coefficients + 4 DC offsets.
 NOMINAL_PARAMS = 12
 #: Candidates re-linearized (outer Gauss-Newton on the coefficients) after the first pass: every one with
@@ -173,6 +184,24 @@ def _parts(ctx: FitContext, effect: Effect, nl: np.ndarray, base: tuple[EffectFi
 def _carries_base(effect: Effect, base: tuple[EffectFit, ...]) -> bool:
     """True when ``effect`` is structural and a base member is a force it carries (the base moves with it)."""
     return type(effect).carrier is not Effect.carrier and any(b.effect is not None and b.effect.forcing for b in base)
+
+
+def misfit(fit: "EffectFit") -> float:
+    """``-2 ln L`` (up to a constant) of a fit's Gaussian output error: ``n ln(RSS / n)`` (BIC without ``k ln n``)."""
+    return float(fit.n_obs * np.log(max(fit.rss_m2, 1e-300) / fit.n_obs))
+
+
+def indistinguishable(a: "EffectFit", b: "EffectFit") -> bool:
+    """The two fits explain the record equally well: the richer one's lower misfit is within what its extra
+    parameters buy from noise alone (likelihood ratio below the :data:`TIE_LR_QUANTILE` chi-square quantile,
+    at least :data:`TIE_MARGIN_BIC`), and the leaner one fits no worse than :data:`TIE_MARGIN_BIC`."""
+    from scipy.stats import chi2
+
+    lean, rich = (a, b) if a.n_params <= b.n_params else (b, a)
+    gain = misfit(lean) - misfit(rich)  # > 0: the richer fits better
+    extra = rich.n_params - lean.n_params
+    allowed = max(TIE_MARGIN_BIC, float(chi2.ppf(TIE_LR_QUANTILE, extra))) if extra else TIE_MARGIN_BIC
+    return -TIE_MARGIN_BIC < gain < allowed
 
 
 def predicts_held_out(candidate_rms_m: float, reference_rms_m: float) -> bool:
@@ -467,6 +496,9 @@ class Ranking:
     best: EffectFit | None
     second: EffectFit | None
     pairs: list[EffectFit]
+    #: Singles whose evidence is within :data:`TIE_MARGIN_BIC` of a single-effect verdict (the verdict is then
+    #: the set ``best`` + these; empty when the data decide)
+    tied: list[EffectFit] = field(default_factory=list)
 
 
 def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 15) -> tuple[float, np.ndarray]:
@@ -494,7 +526,7 @@ def _with_reference(f: EffectFit, ref_bic: float) -> EffectFit:
 
 @single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
 def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, second_stage: bool = True,
-                 threshold: float = SIGNIFICANCE_DELTA_BIC) -> Ranking:
+                 threshold: float = SIGNIFICANCE_DELTA_BIC, progress=None) -> Ranking:
     """Fit each candidate, refine the leaders jointly with the coefficients, then select one or two effects.
 
     Steps:
@@ -513,7 +545,9 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
        gap case the two leading singles and the leading pairs are continued to convergence
        (``FINAL_NFEV``) before they are compared.
     """
+    say = progress or (lambda text: None)
     sol0, bic0, ho0 = nominal_solution(ctx)
+    say(f"stage 1/4: {len(library)} single effects about the nominal fit")
     singles = []
     for e in library:
         try:
@@ -525,6 +559,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     # a gap in the data: the structural effects are then refitted from their starts even when their first
     # pass shows nothing (it linearizes about a nominal fit that may have absorbed them)
     gap = bool(singles) and singles[0].delta_bic >= threshold
+    say(f"stage 2/4: joint refits with the bearing coefficients (leader {singles[0].name if singles else '-'}, "
+        f"delta BIC {singles[0].delta_bic if singles else 0.0:.0f})")
     for i, f in enumerate(singles):
         always = f.name in FORCING_1X
         eff = by_name[f.name]
@@ -539,6 +575,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                                 start_pairs=pairs_from_prior,
                                 max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
     # 3. a fair nominal reference
+    say("stage 3/4: nominal reference re-polished from every refit")
     ref = bic0
     for f in singles:
         if f.delta_bic > 0 and not np.allclose(f.coefficients, ctx.coefficients, rtol=1e-6):
@@ -557,6 +594,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     best = top if (top.delta_bic >= threshold and predicts_held_out(top.held_out_rms_m, ho0)) else None
     second, pairs = None, []
     if best is not None and second_stage:
+        say(f"stage 4/4: pairs on the leading singles (top single {best.name})")
         bases = [f for f in singles[:PAIR_BASES] if f.delta_bic >= threshold]
         seen = set()
         for a in bases:
@@ -621,5 +659,9 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             second = replace(cand, name=other, base=(first,), delta_bic=best.bic - cand.bic, nl=o.nl,
                              nl_std=o.nl_std, lin=o.lin, lin_std=o.lin_std, physical=o.physical,
                              physical_std=o.physical_std, n_params=o.n_params, effect=o.effect)
+    tied = []
+    if best is not None and second is None:
+        tied = [f for f in singles[1:] if f.delta_bic >= threshold and predicts_held_out(f.held_out_rms_m, ho0)
+                and indistinguishable(f, best)][:1]
     return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=singles,
-                   best=best, second=second, pairs=pairs)
+                   best=best, second=second, pairs=pairs, tied=tied)

@@ -106,6 +106,22 @@ def markdown(d: Diagnosis, summary: dict) -> str:
     lines = ["# Sim-to-real gap diagnosis", ""]
     lines.append(f"**Verdict: `{summary['best_effect']}`**"
                  + (f" (second effect: `{summary['second_effect']}`)" if summary["second_effect"] != "none" else ""))
+    tie = summary.get("tie")
+    if tie:
+        lines += ["", f"> **Tie:** `{tie['effects'][0]}` and `{tie['effects'][1]}` explain the data equally well "
+                      f"(misfits -2 ln L differ by {tie['misfit_difference']:.1f} with {tie['parameters'][0]} and "
+                      f"{tie['parameters'][1]} parameters: {tie['rule']}); the record cannot tell them apart, only "
+                      "the parameter count would. Measurements that would:"]
+        for m in tie["separating_measurements"]:
+            lines.append(f"> - {m['measurement']} ({m['how']}): `{tie['effects'][0]}` {m[tie['effects'][0]]}; "
+                         f"`{tie['effects'][1]}` {m[tie['effects'][1]]}")
+    gap_left = summary.get("unexplained")
+    if gap_left:
+        lines += ["", f"> **Unexplained:** {gap_left['residual_over_noise']:.2f} x noise remains after the verdict, "
+                      f"mostly in the {gap_left['dominant_band']} band on {gap_left['dominant_channel']}"
+                      + (f", peaks at {', '.join(f'{f:.1f} Hz' for f in gap_left['nonsync_peaks_hz'])}"
+                         if gap_left["nonsync_peaks_hz"] else "")
+                      + ": an effect of this signature is not in the library, or the verdict is incomplete."]
     lines.append("")
     lines.append(f"Residual RMS {_fmt_um(summary['residual_rms_before'])} um before, "
                  f"{_fmt_um(summary['residual_rms_after'])} um after; shrink ratio {summary['shrink_ratio']:.2f}; "

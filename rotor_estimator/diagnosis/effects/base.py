@@ -32,6 +32,21 @@ UNIT_RUNOUT_M = 1e-6
 UNIT_SKEW_S = 1e-6
 
 
+#: Measurements that separate effects the record alone cannot, cheapest first: key -> what to do. Each
+#: effect declares its response to them in :attr:`Effect.responses` (undeclared: ``UNAFFECTED``).
+MEASUREMENTS: dict[str, str] = {
+    "slow_roll": "record at under 10 % of the running speed (forces that grow with speed vanish)",
+    "trial_weight": "add a known trial mass at a marked angle and record again",
+    "speed_change": "record again at another steady speed",
+    "impact_amplitude": "repeat the impact at twice and half the force",
+    "housing_sensor": "put an accelerometer or a probe on each bearing housing",
+    "probe_calibration": "calibrate each probe statically (gap vs micrometer) and check its mounting angle",
+    "daq_test_signal": "feed one test signal to every acquisition channel at once",
+    "hammer_calibration": "calibrate the hammer's force sensor against a reference",
+}
+UNAFFECTED = "no change"
+
+
 @dataclass(frozen=True)
 class Effect:
     """Base of the candidate effects: ``name``, a one-line ``description`` and parameter names."""
@@ -39,6 +54,13 @@ class Effect:
     name: ClassVar[str] = "effect"
     description: ClassVar[str] = ""
     nl_names: ClassVar[tuple[str, ...]] = ()
+    #: How this effect's signature responds to each of :data:`MEASUREMENTS` that changes it (others:
+    #: :data:`UNAFFECTED`); a tie between two effects is broken by a measurement where they differ.
+    responses: ClassVar[dict[str, str]] = {}
+
+    def response_to(self, measurement: str) -> str:
+        """This effect's declared response to ``measurement`` (a key of :data:`MEASUREMENTS`)."""
+        return self.responses.get(measurement, UNAFFECTED)
 
     def lin_names(self, ctx: FitContext) -> tuple[str, ...]:
         raise NotImplementedError
@@ -79,6 +101,12 @@ class Effect:
     def carrier(self, ctx: FitContext, nl: np.ndarray) -> FitContext | None:
         """``ctx`` with its force response sent through this effect's structural model; ``None`` if it has none."""
         return None
+
+
+def separating_measurements(a: Effect, b: Effect) -> list[dict[str, str]]:
+    """The measurements (cheapest first) under which ``a`` and ``b`` respond differently, with each response."""
+    return [{"measurement": m, "how": how, a.name: a.response_to(m), b.name: b.response_to(m)}
+            for m, how in MEASUREMENTS.items() if a.response_to(m) != b.response_to(m)]
 
 
 def rotating_mass_force(ctx: FitContext, phase_rad: float, moment_kg_m: float,

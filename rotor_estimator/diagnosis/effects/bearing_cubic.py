@@ -25,6 +25,10 @@ class BearingCubic(Effect):
     """
 
     name: ClassVar[str] = "bearing_cubic"
+    responses: ClassVar[dict[str, str]] = {
+        "impact_amplitude": "the free-response frequency and decay change with amplitude",
+        "speed_change": "1X amplitude no longer linear in speed^2",
+    }
     description: ClassVar[str] = "cubic bearing stiffness (hardening/softening), k3x and k3y"
     nl_names: ClassVar[tuple[str, ...]] = ("k3x_1e15_N_per_m3", "k3y_1e15_N_per_m3")
     #: Scale of the nonlinear parameters (order one for a realistic hardening), N/m^3.

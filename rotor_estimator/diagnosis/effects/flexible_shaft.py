@@ -382,6 +382,10 @@ class FlexibleShaft(Effect):
     """
 
     name: ClassVar[str] = "shaft_bending"
+    responses: ClassVar[dict[str, str]] = {
+        "speed_change": "1X grows towards the bending critical speed",
+        "housing_sensor": "housing still; the shaft bends between the probes",
+    }
     description: ClassVar[str] = ("shaft flexibility: equivalent flexible beam on the fitted bearings "
                                   "(coupled), or one decoupled bending mode")
     nl_names: ClassVar[tuple[str, ...]] = ("log10_frequency_hz", "log10_damping_ratio")

@@ -21,6 +21,9 @@ class HammerForceScale(Effect):
 
     forcing: ClassVar[bool] = True
     name: ClassVar[str] = "hammer_force_scale"
+    responses: ClassVar[dict[str, str]] = {
+        "hammer_calibration": "the calibration shows the gain error",
+    }
     description: ClassVar[str] = "impact hammer sensitivity error (recorded force scaled)"
 
     def lin_names(self, ctx):

@@ -18,6 +18,10 @@ class Misalignment(Effect):
 
     forcing: ClassVar[bool] = True
     name: ClassVar[str] = "misalignment"
+    responses: ClassVar[dict[str, str]] = {
+        "slow_roll": "2X shrinks with the transmitted torque; the static offset stays",
+        "speed_change": "2X follows the dynamic stiffness at 2X, force about constant",
+    }
     description: ClassVar[str] = "coupling misalignment, 2X force at bearing 1 (x and y)"
 
     def lin_names(self, ctx):

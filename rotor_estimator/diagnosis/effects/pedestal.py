@@ -17,6 +17,10 @@ class PedestalFlexibility(Effect):
     """Bearing housings on a mass-spring-damper foundation (isotropic, both bearings)."""
 
     name: ClassVar[str] = "pedestal"
+    responses: ClassVar[dict[str, str]] = {
+        "housing_sensor": "shows housing motion at the rotor frequencies",
+        "speed_change": "a resonance of the housing moves the 1X phase",
+    }
     description: ClassVar[str] = "foundation/pedestal flexibility: housing mass, spring and damper under each bearing"
     nl_names: ClassVar[tuple[str, ...]] = ("log10_frequency_hz", "log10_damping_ratio", "log10_mass_kg")
 

@@ -23,6 +23,9 @@ class ProbeGainOrientation(Effect):
     """
 
     name: ClassVar[str] = "probe_gain_orientation"
+    responses: ClassVar[dict[str, str]] = {
+        "probe_calibration": "the calibration shows the gain or angle error",
+    }
     description: ClassVar[str] = "probe gain and mounting-angle error per probe (2x2 map per probe plane)"
 
     def lin_names(self, ctx):

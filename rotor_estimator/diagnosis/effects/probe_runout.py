@@ -16,6 +16,10 @@ class ProbeRunout(Effect):
     """Mechanical/electrical runout: a pattern fixed in shaft angle, Fourier series per probe."""
 
     name: ClassVar[str] = "probe_runout"
+    responses: ClassVar[dict[str, str]] = {
+        "slow_roll": "persists at full amplitude (surface/electrical runout)",
+        "speed_change": "same amplitude and angle at every speed",
+    }
     description: ClassVar[str] = "probe runout fixed in shaft angle (harmonics 1..H per channel)"
     harmonics: int = 4
 

@@ -17,6 +17,11 @@ class ResidualUnbalance(Effect):
 
     forcing: ClassVar[bool] = True
     name: ClassVar[str] = "residual_unbalance"
+    responses: ClassVar[dict[str, str]] = {
+        "slow_roll": "vanishes (force grows as speed^2)",
+        "speed_change": "1X grows as speed^2 through the dynamic stiffness",
+        "trial_weight": "unchanged (the trial response adds to it)",
+    }
     description: ClassVar[str] = "unknown residual unbalance in two planes (1X forward forcing)"
 
     def lin_names(self, ctx):

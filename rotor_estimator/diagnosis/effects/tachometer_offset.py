@@ -18,6 +18,11 @@ class TachometerOffset(Effect):
 
     forcing: ClassVar[bool] = True
     name: ClassVar[str] = "tach_offset"
+    responses: ClassVar[dict[str, str]] = {
+        "slow_roll": "vanishes (it rotates the known imbalance response)",
+        "speed_change": "same angle at every speed",
+        "trial_weight": "the trial mass's response is rotated by the offset angle",
+    }
     description: ClassVar[str] = "keyphasor angular offset (imbalance phase reference rotated)"
     nl_names: ClassVar[tuple[str, ...]] = ("offset_rad",)
 

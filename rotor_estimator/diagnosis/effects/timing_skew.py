@@ -34,6 +34,10 @@ class TimingSkew(Effect):
     """
 
     name: ClassVar[str] = "timing_skew"
+    responses: ClassVar[dict[str, str]] = {
+        "daq_test_signal": "the channels show a time offset on the common signal",
+        "speed_change": "the phase error grows in proportion to speed",
+    }
     description: ClassVar[str] = "timing skew between probe channels (relative to xp1)"
     nl_names: ClassVar[tuple[str, ...]] = ("skew_yp1_us", "skew_xp2_us", "skew_yp2_us")
 
