@@ -41,7 +41,12 @@ def diagnose_case(case_dir: str) -> dict:
         s = diagnose(load_recording(d / "recording.npz"), rig_file.rig, rig_file.estimator).summary()
     except Exception as exc:  # a failed case is scored as a miss, not a crash of the benchmark
         return {"case": d.name, "error": repr(exc), "seconds": time.time() - t0}
+    final = s["table"][-1] if s["second_effect"] != "none" else next(
+        (r for r in s["table"] if r["model"] == f"+ {s['best_effect']}"), s["table"][0])
     return {"case": d.name, "best_effect": s["best_effect"], "second_effect": s["second_effect"],
+            "verdict_set": s["verdict_set"], "tie": s["tie"] is not None,
+            "coefficients": list(final["coefficients"].values()),
+            "coefficients_std": list(final.get("coefficients_std", {}).values()),
             "top_two": s["top_two"], "before": s["residual_rms_before"], "after": s["residual_rms_after"],
             "shrink_ratio": s["shrink_ratio"], "ranking": [(r["effect"], r["delta_bic"]) for r in s["ranking"][:3]],
             "seconds": time.time() - t0}
@@ -56,10 +61,13 @@ def score(results: list[dict], labels: dict) -> dict:
         top2 = set(r.get("top_two", []))
         if r.get("second_effect", "none") != "none":
             top2 = {best, r["second_effect"]}
+        # a tie is a set verdict: a hit when it has at most two members and holds the truth
+        tied = set(r.get("verdict_set", [])) if r.get("tie") else set()
         if not truth:
             t1 = t2 = best == "none"
         elif len(truth) == 1:
-            t1, t2 = best == truth[0], best != "none" and truth[0] in top2
+            t1 = best == truth[0] or (len(tied) <= 2 and truth[0] in tied)
+            t2 = best != "none" and truth[0] in top2
         else:
             t1, t2 = best in truth, best != "none" and set(truth) <= top2
         gap = r["before"] / lab["noise_rms_m"] if "before" in r else float("nan")
@@ -72,7 +80,10 @@ def score(results: list[dict], labels: dict) -> dict:
         # effect_gap; None when the label has none)
         own = lab.get("effect_gap") or {}
         separable = min(own.values()) >= MIN_GAP if len(truth) == 2 and len(own) == 2 else None
+        cover, worst_direct, worst_cross = _coefficient_errors(r, lab)
         rows.append({"case": r["case"], "truth": key, "verdict": best, "top1": t1, "top2": t2, "gap": gap,
+                     "set_verdict": bool(tied), "coefficients_covered": cover, "worst_direct_error": worst_direct,
+                     "worst_cross_error": worst_cross,
                      "generator": lab["generator"], "shrink_error": shrink_err, "seconds": r.get("seconds", 0.0),
                      "pair_separable": separable})
     arr = lambda k, sel=None: np.array([x[k] for x in rows if sel is None or sel(x)], dtype=float)  # noqa: E731
@@ -93,8 +104,43 @@ def score(results: list[dict], labels: dict) -> dict:
             "pairs_both_in_top2": [x["top2"] for x in rows if "+" in x["truth"]],
             "separable_pairs_both_in_top2": [x["top2"] for x in rows if x["pair_separable"]],
             "ross_top1": [x["top1"] for x in rows if x["generator"] == "ross"],
+            "set_verdicts": int(sum(x["set_verdict"] for x in rows)),
+            "coefficient_coverage": _mean_of([c for x in rows for c in x["coefficients_covered"]]),
+            "n_coefficients_scored": sum(len(x["coefficients_covered"]) for x in rows),
+            "worst_direct_error_median": _median_of([x["worst_direct_error"] for x in rows]),
+            "worst_cross_error_median": _median_of([x["worst_cross_error"] for x in rows]),
             "mean_seconds_per_case": float(arr("seconds").mean()),
             "rows": rows, "confusion": _confusion(rows)}
+
+
+#: Direct and cross-coupled positions, stiffness then damping, in the order kxx kxy kyx kyy cxx cxy cyx cyy.
+DIRECT, CROSS = ((0, 3), (4, 7)), ((1, 2), (5, 6))
+
+
+def _coefficient_errors(result: dict, label: dict) -> tuple[list[bool], float, float]:
+    """Per coefficient after the verdict: is the truth within +-1.96 reported std; and the worst error of the
+    direct and of the cross-coupled terms, each relative to the larger true direct term of its kind (stiffness
+    or damping: a cross term near zero has no relative error of its own)."""
+    truth = label.get("true_coefficients")
+    est, std = result.get("coefficients"), result.get("coefficients_std")
+    if not truth or not est or not std or len(est) != 8 or len(std) != 8:
+        return [], float("nan"), float("nan")
+    t, e, s = (np.asarray(v, dtype=float) for v in (truth, est, std))
+    covered = [bool(abs(e[i] - t[i]) <= 1.96 * s[i]) for i in range(8) if np.isfinite(s[i]) and s[i] > 0]
+    worst = {}
+    for name, groups in (("direct", DIRECT), ("cross", CROSS)):
+        worst[name] = max(abs(e[i] - t[i]) / max(abs(t[j]) for j in direct)
+                          for idx, direct in zip(groups, DIRECT) for i in idx)
+    return covered, worst["direct"], worst["cross"]
+
+
+def _mean_of(values: list) -> float:
+    return float(np.mean(values)) if values else float("nan")
+
+
+def _median_of(values: list) -> float:
+    v = [x for x in values if np.isfinite(x)]
+    return float(np.median(v)) if v else float("nan")
 
 
 def _confusion(rows: list[dict]) -> dict:
@@ -124,6 +170,11 @@ def format_score(s: dict) -> str:
             f"(each effect's own gap >= {MIN_GAP}x: {sum(s['separable_pairs_both_in_top2'])} / "
             f"{len(s['separable_pairs_both_in_top2'])})",
             f"ROSS cases top-1         {sum(s['ross_top1'])} / {len(s['ross_top1'])}",
+            f"set verdicts (ties)      {s['set_verdicts']} (a hit when <= 2 members and holding the truth)",
+            f"coefficient coverage     {100 * s['coefficient_coverage']:.1f} % of {s['n_coefficients_scored']} "
+            "within +-1.96 reported std (target 90-98 %)",
+            f"worst coefficient error  median {100 * s['worst_direct_error_median']:.1f} % direct, "
+            f"{100 * s['worst_cross_error_median']:.1f} % cross-coupled (of the largest true term of each kind)",
             f"shrink error median      {100 * s['shrink_error_median']:.1f} %, within 20 %: "
             f"{100 * s['shrink_within_20pct']:.1f} % of detected cases",
             f"mean time per case       {s['mean_seconds_per_case']:.1f} s"]

@@ -35,3 +35,27 @@ def test_pairs_are_all_counted_and_the_separable_ones_reported_apart():
     assert s["separable_pairs_both_in_top2"] == [True]
     assert s["false_alarms"] == 0 and s["top1"] == 0.75 and s["top2"] == 0.75
     assert "pairs with both in top 2 1 / 2 (each effect's own gap >= 1.2x: 1 / 1)" in format_score(s)
+
+
+def test_a_tie_scores_as_a_hit_only_with_two_members_holding_the_truth_and_coverage_counts_each_coefficient():
+    """A set verdict {unbalance, runout} is a top-1 hit for an unbalance case, a set that misses the truth is no
+    hit, and sets are counted; coefficient coverage is the share of true coefficients within +-1.96 std, and the
+    worst errors are relative to the larger true direct term of their kind."""
+    truth = [5e5, 4e5, -3.5e5, 6e5, 1100.0, 50.0, -40.0, 1200.0]
+    est = list(truth)
+    est[0] = 5e5 + 3e4  # 1.5 std off: covered; 5 % of kyy (the larger direct stiffness)
+    est[5] = 50.0 + 120.0  # 4 std off: not covered; 10 % of cyy
+    std = [2e4] * 4 + [30.0] * 4
+    labels = {"a": {**_label(["residual_unbalance"]), "true_coefficients": truth},
+              "b": _label(["tach_offset"])}
+    res = [{"case": "a", "best_effect": "probe_runout", "second_effect": "none", "tie": True,
+            "verdict_set": ["probe_runout", "residual_unbalance"], "top_two": ["probe_runout", "residual_unbalance"],
+            "coefficients": est, "coefficients_std": std, "before": 2e-6, "shrink_ratio": 2.0, "seconds": 1.0},
+           {"case": "b", "best_effect": "probe_runout", "second_effect": "none", "tie": True,
+            "verdict_set": ["probe_runout", "residual_unbalance"], "top_two": ["probe_runout", "residual_unbalance"],
+            "before": 2e-6, "shrink_ratio": 2.0, "seconds": 1.0}]
+    s = score(res, labels)
+    assert [x["top1"] for x in s["rows"]] == [True, False] and s["set_verdicts"] == 2
+    assert s["n_coefficients_scored"] == 8 and s["coefficient_coverage"] == 7 / 8
+    assert abs(s["worst_direct_error_median"] - 3e4 / 6e5) < 1e-12
+    assert abs(s["worst_cross_error_median"] - 120.0 / 1200.0) < 1e-12
