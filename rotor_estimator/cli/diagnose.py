@@ -41,6 +41,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     warnings.simplefilter("ignore", RuntimeWarning)
     rig_file = load_rig_file(args.rig)
     recording = _load(Path(bag_from_args(args)), args.salvage)
+    recording.meta.setdefault("source", str(bag_from_args(args)))
     stage = None if args.no_progress else (lambda text: print(f"rotor-estimator: diagnose: {text}", file=sys.stderr,
                                                                 flush=True))
     d = diagnose(recording, rig_file.rig, rig_file.estimator, passes=args.passes, progress=stage)

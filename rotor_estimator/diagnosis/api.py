@@ -28,7 +28,7 @@ from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_con
 UNEXPLAINED_RATIO = 1.2
 
 # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance; 3: data;
-# 4: verdict_set, tie, unexplained, the table's coefficients_std
+# 4: verdict_set, tie, unexplained, provenance, finding, the table's coefficients_std
 SCHEMA_VERSION = 4
 
 NO_IMPACT_WARNING = ("no impact in the record: the bearing coefficients are then fitted to the synchronous "
@@ -47,6 +47,8 @@ class Diagnosis:
     nominal_prediction_m: np.ndarray
     table: list[dict]
     data: dict
+    #: Where the record came from (a bag or file path; the recording's ``meta['source']`` by default).
+    source: str | None = None
 
     @property
     def best_effect(self) -> str:
@@ -97,6 +99,44 @@ class Diagnosis:
                 "bands": {r["band"]: {"rms_m": r["rms_m"], "share": r["share"]} for r in b["bands"]},
                 "nonsync_peaks_hz": [p["frequency_hz"] for p in b["nonsync_peaks"]]}
 
+    def provenance(self) -> dict:
+        """What was diagnosed, with what: record source, rig, mean speed, span, package version, UTC date."""
+        import datetime
+        from importlib import metadata
+
+        try:
+            version = metadata.version("rotor_estimator")
+        except metadata.PackageNotFoundError:
+            version = "unknown"
+        ctx = self.ctx
+        return {"source": self.source, "rig": ctx.rig.name,
+                "mean_speed_rpm": float(ctx.mean_speed_rad_s * 30 / np.pi),
+                "duration_s": float(ctx.t_s[-1] - ctx.t_s[0]), "impacts": self.data.get("impacts"),
+                "rotor_estimator_version": version,
+                "date_utc": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")}
+
+    def finding(self) -> str:
+        """One sentence: the verdict (or tie, or none) and the verdict's most significant parameter with its std."""
+        rk = self.ranking
+        if rk.best is None:
+            return ("The nominal model explains the record to the noise level: no unmodelled effect is significant "
+                    f"(the best candidate, `{rk.singles[0].name if rk.singles else '-'}`, stays under delta BIC "
+                    f"{SIGNIFICANCE_DELTA_BIC:g}).")
+        fits = [rk.best] + ([rk.second] if rk.second else [])
+        parts = []
+        for f in fits:
+            sig = [(abs(v) / s, k, v, s) for k, v in f.physical.items()
+                   if (s := f.physical_std.get(k, np.nan)) > 0 and np.isfinite(s)]
+            if sig:
+                _, k, v, s_ = max(sig)
+                parts.append(f"`{f.name}` ({k} = {v:.4g} +- {s_:.2g})")
+            else:
+                parts.append(f"`{f.name}`")
+        text = " together with ".join(parts)
+        if rk.tied:
+            text += f", or equally `{rk.tied[0].name}` (a tie: see the measurements that separate them)"
+        return f"The gap is explained by {text}."
+
     def summary(self) -> dict:
         ctx, rk = self.ctx, self.ranking
         before = _rms(ctx.y_m - self.nominal_prediction_m, ctx.mask)
@@ -108,6 +148,8 @@ class Diagnosis:
                                 next(f.name for f in rk.singles if f.name != best.name))]
         return {
             "schema_version": SCHEMA_VERSION,
+            "provenance": self.provenance(),
+            "finding": self.finding(),
             "data": self.data,
             "where": self.where,
             "innovations": self.innovations,
@@ -264,5 +306,6 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
         data["warnings"].append(f"the record is {window['record_s']:.3g} s long: the fits ran on "
                                 f"{window['start_s']:.3f}-{window['stop_s']:.3f} s, {window['rule']} (memory and time "
                                 f"bound); diagnose other spans by cutting the record")
+    source = recording.meta.get("source") if isinstance(getattr(recording, "meta", None), dict) else None
     return Diagnosis(ctx=ctx, ranking=rk, where=where, innovations=innov, nominal_prediction_m=sol0.prediction_m,
-                     table=table, data=data)
+                     table=table, data=data, source=None if source is None else str(source))

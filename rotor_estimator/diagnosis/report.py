@@ -104,6 +104,13 @@ def _fmt_um(v: float) -> str:
 def markdown(d: Diagnosis, summary: dict) -> str:
     w = summary["where"]
     lines = ["# Sim-to-real gap diagnosis", ""]
+    prov = summary.get("provenance")
+    if prov:
+        lines += [f"Record `{prov['source'] or 'unnamed'}` on rig `{prov['rig']}`: {prov['mean_speed_rpm']:.0f} rpm, "
+                  f"{prov['duration_s']:.3g} s, {prov['impacts']} impact(s); rotor_estimator "
+                  f"{prov['rotor_estimator_version']}, {prov['date_utc']} UTC.", ""]
+    if summary.get("finding"):
+        lines += [summary["finding"], ""]
     lines.append(f"**Verdict: `{summary['best_effect']}`**"
                  + (f" (second effect: `{summary['second_effect']}`)" if summary["second_effect"] != "none" else ""))
     tie = summary.get("tie")
