@@ -61,8 +61,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
                   + "; ".join(f"{m['measurement']} ({m['how']})" for m in tie["separating_measurements"][:2]))
         gap_left = summary["unexplained"]
         if gap_left:
-            print(f"unexplained: {gap_left['residual_over_noise']:.2f} x noise remains after the verdict, mostly "
-                  f"{gap_left['dominant_band']} on {gap_left['dominant_channel']}")
+            print(f"unexplained: {gap_left['residual_over_noise']:.2f} x noise remains after the verdict: "
+                  f"{gap_left['signature']}")
         w = summary["where"]
         print(f"gap: residual RMS {summary['residual_rms_before'] * 1e6:.3f} um = {w['gap_ratio']:.2f} x noise; "
               f"dominant channel {w['dominant_channel']}, band {w['dominant_band']}")

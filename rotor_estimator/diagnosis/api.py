@@ -94,7 +94,7 @@ class Diagnosis:
             return None
         b = budget(ctx.t_s[ctx.mask], e, ctx.shaft.angle_rad[ctx.mask], ctx.shaft.speed_rad_s[ctx.mask],
                    ctx.impact_force_n[ctx.mask], ctx.noise_std_m)
-        return {"residual_over_noise": ratio, "dominant_band": b["dominant_band"],
+        return {"residual_over_noise": ratio, "signature": gap_signature(b), "dominant_band": b["dominant_band"],
                 "dominant_channel": b["dominant_channel"],
                 "bands": {r["band"]: {"rms_m": r["rms_m"], "share": r["share"]} for r in b["bands"]},
                 "nonsync_peaks_hz": [p["frequency_hz"] for p in b["nonsync_peaks"]]}
@@ -180,6 +180,36 @@ class Diagnosis:
             "coefficients_nominal": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, ctx.coefficients))),
             "table": self.table,
         }
+
+
+def gap_signature(b: dict) -> str:
+    """A residual budget (:func:`.residuals.budget`) in words: the kind of gap, for one not in the library.
+
+    An order (nX) is called fixed in direction when its forward and backward whirl are within a factor of two
+    (a force or a reading along one line, as a misalignment's 2X), else forward or backward; a non-synchronous
+    peak is named with its frequency; a residual at least twice as strong in the 50 ms after the impacts as
+    in steady running is "after the impact"."""
+    band = b["dominant_band"]
+    words = []
+    if band.endswith("X") and band[:-1].isdigit():
+        plane = max(b["whirl"].values(), key=lambda p: sum(p["orders"].get(band, {}).values()))
+        o = plane["orders"].get(band)
+        if o:
+            f, bw = o["forward_m"], o["backward_m"]
+            kind = ("fixed in direction (forward and backward whirl alike)" if 0.5 <= f / max(bw, 1e-300) <= 2.0
+                    else "forward whirl" if f > bw else "backward whirl")
+            words.append(f"{band} {kind}")
+        else:
+            words.append(band)
+    elif band == "nonsync_peaks" and b["nonsync_peaks"]:
+        peaks = ", ".join(f"{p['frequency_hz']:.1f}" for p in b["nonsync_peaks"][:3])
+        words.append(f"fixed-frequency peak(s) at {peaks} Hz")
+    else:
+        words.append(band)
+    seg = {r["segment"]: r["rms_m"] for r in b["time"]}
+    if "after_impact_50ms" in seg and seg["after_impact_50ms"] >= 2.0 * seg.get("steady", np.inf):
+        words.append("strongest in the 50 ms after the impacts")
+    return "; ".join(words) + f", mostly on {b['dominant_channel']}"
 
 
 def data_accounting(recording: RigRecording, ctx: FitContext) -> dict:

@@ -124,11 +124,9 @@ def markdown(d: Diagnosis, summary: dict) -> str:
                          f"`{tie['effects'][1]}` {m[tie['effects'][1]]}")
     gap_left = summary.get("unexplained")
     if gap_left:
-        lines += ["", f"> **Unexplained:** {gap_left['residual_over_noise']:.2f} x noise remains after the verdict, "
-                      f"mostly in the {gap_left['dominant_band']} band on {gap_left['dominant_channel']}"
-                      + (f", peaks at {', '.join(f'{f:.1f} Hz' for f in gap_left['nonsync_peaks_hz'])}"
-                         if gap_left["nonsync_peaks_hz"] else "")
-                      + ": an effect of this signature is not in the library, or the verdict is incomplete."]
+        lines += ["", f"> **Unexplained:** {gap_left['residual_over_noise']:.2f} x noise remains after the verdict: "
+                      f"{gap_left['signature']}. An effect of this signature is not in the library, or the verdict "
+                      "is incomplete."]
     lines.append("")
     lines.append(f"Residual RMS {_fmt_um(summary['residual_rms_before'])} um before, "
                  f"{_fmt_um(summary['residual_rms_after'])} um after; shrink ratio {summary['shrink_ratio']:.2f}; "
