@@ -152,9 +152,10 @@ def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int) 
     weight[-1] = 1.0  # m is even: the last one-sided line is the Nyquist frequency
     cross_half = cross[:half] * weight[:, None, None]
     meat = np.zeros((p, p))
-    for f0 in range(0, half, SPECTRUM_CHUNK_LINES):
+    for f0 in range(0, half, SPECTRUM_CHUNK_LINES):  # sum_f A_f^T S_f conj(A_f), as one matrix product per chunk
         a_f = spec[f0:f0 + SPECTRUM_CHUNK_LINES].astype(complex)
-        meat += np.einsum("fcp,fcd,fdq->pq", a_f, cross_half[f0:f0 + SPECTRUM_CHUNK_LINES], a_f.conj()).real
+        s_a = np.matmul(cross_half[f0:f0 + SPECTRUM_CHUNK_LINES], a_f.conj())  # (F, C, p)
+        meat += (a_f.reshape(-1, p).T @ s_a.reshape(-1, p)).real
     return bread @ (meat / m) @ bread
 
 
