@@ -12,7 +12,11 @@ force acts on the relative motion, ``f_b = K (z - z_p) + C (v - v_p)``::
 
     M dv/dt = F - Omega G v - f_b,    m_p dv_p/dt = f_b - k_p z_p - c_p v_p.
 
-The probes are taken as fixed to ground (absolute shaft motion).
+Two forms of the foundation (``housing_map`` ``T``, bearing-housing motion ``= T z_p``): a separate
+mass under each bearing (``T = I``, ``z_p = [x1, y1, x2, y2]``) or one common mass carrying both
+housings (``z_p = [x, y]``, both housings move with it); the housing equation is then
+``m_p dv_p/dt = T^T f_b - k_p z_p - c_p v_p``. The probes are fixed to ground (absolute shaft
+motion, ``y = H_p z``) or to the housings (relative, ``y = H_p (z - T z_p)``).
 
 Bending-mode augmentation: one isotropic modal coordinate per direction, pinned at the
 bearings, shape ``phi(s) = sin(pi (s - s_b1) / L)``, decoupled from the rigid modes::
@@ -46,33 +50,49 @@ def rigid_output(mats: RotorMatrices) -> np.ndarray:
     return c
 
 
+#: Housing maps ``T`` of the two foundation forms: a separate mass under each bearing, one common mass.
+HOUSING_MAPS = {"separate": np.eye(4), "common": np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 0.0], [0.0, 1.0]])}
+
+
 def pedestal_state_matrix(mats: RotorMatrices, coefficients: np.ndarray, speed_rad_s: float, mass_kg: float,
-                          stiffness_n_per_m: float, damping_n_s_per_m: float) -> np.ndarray:
-    """16x16 ``A`` for state ``[v, z, v_p, z_p]`` (see module docstring)."""
+                          stiffness_n_per_m: float, damping_n_s_per_m: float,
+                          housing_map: np.ndarray | None = None) -> np.ndarray:
+    """``A`` for state ``[v, z, v_p, z_p]`` (see module docstring): 16x16 with separate housings, 12x12 common."""
+    t = HOUSING_MAPS["separate"] if housing_map is None else np.asarray(housing_map, float)
+    nh = t.shape[1]
     k, c = stiffness_matrix(coefficients), damping_matrix(coefficients)
     minv = mats.mass_inverse
-    a = np.zeros((16, 16))
+    a = np.zeros((8 + 2 * nh, 8 + 2 * nh))
+    vp, zp = slice(8, 8 + nh), slice(8 + nh, 8 + 2 * nh)
     a[:4, :4] = -minv @ (c + speed_rad_s * mats.gyro_matrix)
     a[:4, 4:8] = -minv @ k
-    a[:4, 8:12] = minv @ c
-    a[:4, 12:16] = minv @ k
+    a[:4, vp] = minv @ c @ t
+    a[:4, zp] = minv @ k @ t
     a[4:8, :4] = np.eye(4)
-    a[8:12, :4] = c / mass_kg
-    a[8:12, 4:8] = k / mass_kg
-    a[8:12, 8:12] = -(c + damping_n_s_per_m * np.eye(4)) / mass_kg
-    a[8:12, 12:16] = -(k + stiffness_n_per_m * np.eye(4)) / mass_kg
-    a[12:16, 8:12] = np.eye(4)
+    a[vp, :4] = t.T @ c / mass_kg
+    a[vp, 4:8] = t.T @ k / mass_kg
+    a[vp, vp] = -(t.T @ c @ t + damping_n_s_per_m * np.eye(nh)) / mass_kg
+    a[vp, zp] = -(t.T @ k @ t + stiffness_n_per_m * np.eye(nh)) / mass_kg
+    a[zp, vp] = np.eye(nh)
     return a
 
 
-def pedestal_input(mats: RotorMatrices) -> np.ndarray:
-    return np.vstack([mats.mass_inverse, np.zeros((12, 4))])
+def pedestal_input(mats: RotorMatrices, housing_map: np.ndarray | None = None) -> np.ndarray:
+    nh = 4 if housing_map is None else np.asarray(housing_map).shape[1]
+    return np.vstack([mats.mass_inverse, np.zeros((4 + 2 * nh, 4))])
 
 
-def pedestal_output(mats: RotorMatrices) -> np.ndarray:
-    c = np.zeros((8, 16))
+def pedestal_output(mats: RotorMatrices, housing_map: np.ndarray | None = None, *,
+                    relative: bool = False) -> np.ndarray:
+    """Rows 0-3 probe displacements, 4-7 velocities: of the shaft (absolute) or of shaft minus housing (relative)."""
+    t = HOUSING_MAPS["separate"] if housing_map is None else np.asarray(housing_map, float)
+    nh = t.shape[1]
+    c = np.zeros((8, 8 + 2 * nh))
     c[:4, 4:8] = mats.probe_from_bearing
     c[4:, :4] = mats.probe_from_bearing
+    if relative:
+        c[:4, 8 + nh:] = -mats.probe_from_bearing @ t
+        c[4:, 8:8 + nh] = -mats.probe_from_bearing @ t
     return c
 
 

@@ -73,21 +73,14 @@ PAIR_STARTS = 3
 HELD_OUT_TOLERANCE = 1e-3
 #: Residuals are handed to least_squares in micrometres so that its tolerances mean something.
 RESIDUAL_SCALE = 1e6
-#: Effects that change the 1X forcing: the nominal fit absorbs them by moving the coefficients far,
-#: so their joint refit always runs (every joint refit also starts from the prior coefficients r0).
-FORCING_1X = ("residual_unbalance", "tach_offset")
-#: Effects whose structural starts (``refine_starts``) are also tried from the prior coefficients r0:
-#: a strong hardening drags the nominal stiffness far from r0 (up to 10x seen), and a soft pedestal or a
-#: low bending mode can drag the nominal fit into a basin with a negative or 5x stiffness, about which
-#: their first pass finds nothing at all (the effect's own refit from r0 then gains 10^4 in BIC).
-PRIOR_STRUCTURAL_STARTS = ("bearing_cubic", "pedestal", "shaft_bending")
-#: Effects whose pair on the top single is always refitted jointly, whatever its first pass: a hardening
-#: shows only once the coefficients move back from the stiffer values the top single's fit absorbed it
-#: into. A pedestal is also refitted on every leading force effect it carries (:meth:`.Effect.carrier`):
-#: its first pass linearizes about the coefficients that force's single fit dragged to absorb the
-#: pedestal's own response (unbalance + pedestal was missed that way). The bending mode is left out for
-#: time (40 s a case).
-ALWAYS_REFINED_PAIRS = ("bearing_cubic", "pedestal")
+# How each effect is refitted is its own declaration (:class:`.Effect`: ``refit_always``, ``starts_from_prior``,
+# ``pair_always_refitted``, ``transforms_signal``, ``carrier``), not a list of names here: adding an effect
+# touches its own module only. Why they exist: a 1X force is absorbed by the nominal fit dragging the
+# coefficients far, so its joint refit always runs; a strong hardening drags the nominal stiffness up to 10x,
+# and a soft pedestal or a low bending mode into a basin with a negative or 5x stiffness, about which their
+# first pass finds nothing (their refit from r0 then gains 10^4 in BIC); a hardening or a pedestal shows in a
+# pair only once the coefficients move back from the values the top single absorbed it into (a pedestal is
+# also refitted on every force it carries). The bending mode's pairs are not always refitted, for time.
 
 
 @dataclass
@@ -125,6 +118,7 @@ class EffectFit:
         return {"name": self.name, "delta_bic": round(self.delta_bic, 2), "bic": round(self.bic, 2),
                 "n_params": self.n_params, "held_out_rms_m": self.held_out_rms_m,
                 "residual_rms_m": [float(v) for v in self.residual_rms_m],
+                "form": self.effect.form if self.effect is not None else "",
                 "parameters": {k: {"value": float(v), "std": float(self.physical_std.get(k, np.nan))}
                                for k, v in self.physical.items()}}
 
@@ -550,10 +544,11 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     say(f"stage 1/4: {len(library)} single effects about the nominal fit")
     singles = []
     for e in library:
-        try:
-            singles.append(fit_effect(ctx, e, reference_bic=bic0))
-        except (ValueError, np.linalg.LinAlgError):  # a candidate that cannot be fitted here is left out
-            continue
+        for form in e.variants():  # every physical form of it; the best is kept after the joint refits
+            try:
+                singles.append(fit_effect(ctx, form, reference_bic=bic0))
+            except (ValueError, np.linalg.LinAlgError):  # a candidate that cannot be fitted here is left out
+                continue
     singles.sort(key=lambda f: -f.delta_bic)
     by_name = {e.name: e for e in library}
     # a gap in the data: the structural effects are then refitted from their starts even when their first
@@ -561,19 +556,29 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     gap = bool(singles) and singles[0].delta_bic >= threshold
     say(f"stage 2/4: joint refits with the bearing coefficients (leader {singles[0].name if singles else '-'}, "
         f"delta BIC {singles[0].delta_bic if singles else 0.0:.0f})")
+    name_rank: dict[str, int] = {}
+    for f in singles:  # the rank of each effect by its best form (forms of one effect share a place)
+        name_rank.setdefault(f.name, len(name_rank))
     for i, f in enumerate(singles):
-        always = f.name in FORCING_1X
-        eff = by_name[f.name]
+        eff = f.effect or by_name[f.name]
+        always = eff.refit_always
         nl_starts = tuple(eff.refine_starts(ctx)) if (f.delta_bic > 0 or gap) else ()
-        if (i < REFINE_TOP and f.delta_bic > 0) or always or nl_starts:
+        if (name_rank[f.name] < REFINE_TOP and f.delta_bic > 0) or always or nl_starts:
             # from the prior r0 too: a large effect drags the nominal fit far from it (a 30 % probe gain
             # error moved kxx 15x), and the first pass's linearized jump can even be unstable
             starts = (ctx.prior_coefficients,)
             pairs_from_prior = tuple((ctx.prior_coefficients, p) for p in nl_starts) \
-                if f.name in PRIOR_STRUCTURAL_STARTS else ()
+                if eff.starts_from_prior else ()
             singles[i] = refine(ctx, eff, f, reference_bic=bic0, extra_starts=starts, nl_starts=nl_starts,
                                 start_pairs=pairs_from_prior,
                                 max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
+    # each effect's best form (by BIC after its joint refit) stands for it from here on
+    singles.sort(key=lambda f: f.bic)
+    kept: dict[str, EffectFit] = {}
+    for f in singles:
+        kept.setdefault(f.name, f)
+    singles = list(kept.values())
+    by_name.update({f.name: f.effect for f in singles if f.effect is not None})
     # 3. a fair nominal reference
     say("stage 3/4: nominal reference re-polished from every refit")
     ref = bic0
@@ -599,7 +604,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         seen = set()
         for a in bases:
             actx = a.ctx or ctx
-            for e in library:
+            for e in (by_name[x.name] for x in library):
                 key = frozenset((a.name, e.name))
                 if e.name == a.name or key in seen:
                     continue
@@ -611,11 +616,11 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                     continue
         pairs.sort(key=lambda f: f.bic)
         # refit jointly with the coefficients: the best pairs, and every pair on the top single whose second
-        # effect the first pass cannot judge (ALWAYS_REFINED_PAIRS)
+        # effect the first pass cannot judge (``pair_always_refitted``)
         to_refine = set(range(min(PAIR_REFINE, len(pairs))))
         # and every structural effect on a force it carries (its first pass linearizes about the coefficients
         # the force's single fit dragged to absorb the structure's own response)
-        to_refine |= {i for i, p in enumerate(pairs) if p.name in ALWAYS_REFINED_PAIRS and (
+        to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].pair_always_refitted and (
             p.base == (top.name,) or _carries_base(by_name[p.name], tuple(f for f in singles if f.name == p.base[0])))}
         # and every signal transform (a channel delay) on any base: its first pass delays the base's model
         # about the coefficients the base's single fit dragged to absorb the delay too (misalignment with a
@@ -626,13 +631,13 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             a = next(f for f in singles if f.name == p.base[0])
             actx = a.ctx or ctx
             nl_starts = tuple(by_name[p.name].refine_starts(actx))
-            from_prior = (actx.prior_coefficients,) \
-                if p.name in PRIOR_STRUCTURAL_STARTS or by_name[p.name].transforms_signal else ()
+            eff = by_name[p.name]
+            from_prior = (actx.prior_coefficients,) if eff.starts_from_prior or eff.transforms_signal else ()
             # a pedestal or hardening also starts from the prior r0 at each of its structural starts, as its
             # single does: its partner's single fit may have dragged the coefficients into a basin where it is
-            # invisible (the bending mode's 15 starts are left out for time, as in ALWAYS_REFINED_PAIRS)
+            # invisible (the bending mode's 15 starts are left out for time: it is not pair_always_refitted)
             pairs_from_prior = tuple((actx.prior_coefficients, s) for s in nl_starts) \
-                if p.name in PRIOR_STRUCTURAL_STARTS and p.name in ALWAYS_REFINED_PAIRS else ()
+                if eff.starts_from_prior and eff.pair_always_refitted else ()
             pairs[i] = refine(actx, by_name[p.name], p, (a,), reference_bic=top.bic, extra_starts=from_prior,
                               nl_starts=nl_starts, start_pairs=pairs_from_prior,
                               max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)

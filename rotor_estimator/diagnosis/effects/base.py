@@ -57,6 +57,31 @@ class Effect:
     #: How this effect's signature responds to each of :data:`MEASUREMENTS` that changes it (others:
     #: :data:`UNAFFECTED`); a tie between two effects is broken by a measurement where they differ.
     responses: ClassVar[dict[str, str]] = {}
+    #: What the effect is, for the report and the search: ``"force"`` (a force on the shaft, seen through the
+    #: model), ``"structural"`` (changes the model itself: a foundation, a nonlinearity, a mode),
+    #: ``"measurement"`` (adds to or maps the probe signals) or ``"signal_transform"`` (acts on every
+    #: contribution of a channel: a delay).
+    kind: ClassVar[str] = "measurement"
+    # How the search refits it (ranking.rank_effects reads these; the defaults suit a measurement effect):
+    #: The nominal fit absorbs this effect by dragging the coefficients far (a 1X force), so its joint refit
+    #: with the coefficients always runs, whatever its first pass shows.
+    refit_always: ClassVar[bool] = False
+    #: Its structural starts (:meth:`refine_starts`) are also tried from the prior coefficients r0: the
+    #: effect can drag the nominal fit into a basin (negative or 10x stiffness) about which its first pass
+    #: finds nothing.
+    starts_from_prior: ClassVar[bool] = False
+    #: Its pair on the top single is refitted jointly whatever the pair's first pass (it shows only once the
+    #: coefficients move back from the values the top single absorbed it into).
+    pair_always_refitted: ClassVar[bool] = False
+
+    def variants(self) -> tuple["Effect", ...]:
+        """The physical forms of this effect the search fits apart, keeping the best (default: itself only)."""
+        return (self,)
+
+    @property
+    def form(self) -> str:
+        """Which of :meth:`variants` this is, in words (empty for a single-form effect)."""
+        return ""
 
     def response_to(self, measurement: str) -> str:
         """This effect's declared response to ``measurement`` (a key of :data:`MEASUREMENTS`)."""

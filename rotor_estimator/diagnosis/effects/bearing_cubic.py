@@ -25,6 +25,9 @@ class BearingCubic(Effect):
     """
 
     name: ClassVar[str] = "bearing_cubic"
+    kind: ClassVar[str] = "structural"
+    starts_from_prior: ClassVar[bool] = True
+    pair_always_refitted: ClassVar[bool] = True
     responses: ClassVar[dict[str, str]] = {
         "impact_amplitude": "the free-response frequency and decay change with amplitude",
         "speed_change": "1X amplitude no longer linear in speed^2",

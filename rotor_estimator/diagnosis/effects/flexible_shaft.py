@@ -382,6 +382,8 @@ class FlexibleShaft(Effect):
     """
 
     name: ClassVar[str] = "shaft_bending"
+    kind: ClassVar[str] = "structural"
+    starts_from_prior: ClassVar[bool] = True
     responses: ClassVar[dict[str, str]] = {
         "speed_change": "1X grows towards the bending critical speed",
         "housing_sensor": "housing still; the shaft bends between the probes",

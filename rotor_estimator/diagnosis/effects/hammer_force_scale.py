@@ -21,6 +21,7 @@ class HammerForceScale(Effect):
 
     forcing: ClassVar[bool] = True
     name: ClassVar[str] = "hammer_force_scale"
+    kind: ClassVar[str] = "force"
     responses: ClassVar[dict[str, str]] = {
         "hammer_calibration": "the calibration shows the gain error",
     }

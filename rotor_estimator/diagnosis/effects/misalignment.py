@@ -12,31 +12,49 @@ from rotor_estimator.diagnosis import models
 from rotor_estimator.diagnosis.effects.base import Effect
 
 
+BEARINGS = ("b1", "b2")
+
+
 @dataclass(frozen=True)
 class Misalignment(Effect):
-    """Coupling misalignment: a 2X force at the drive-end bearing (its static preload only shifts DC)."""
+    """Misalignment: a 2X force at each bearing, any forward and backward whirl (its static preload only shifts DC).
+
+    Each bearing's force ``fx = A cos 2theta + B sin 2theta``, ``fy = C cos 2theta + D sin 2theta`` spans every
+    2X force there: a rotating (forward or backward) one and one of fixed direction (equal forward and backward
+    parts), which is the form a coupling's angular or parallel offset takes. The reported forward/backward
+    split says which.
+    """
 
     forcing: ClassVar[bool] = True
     name: ClassVar[str] = "misalignment"
+    kind: ClassVar[str] = "force"
     responses: ClassVar[dict[str, str]] = {
         "slow_roll": "2X shrinks with the transmitted torque; the static offset stays",
         "speed_change": "2X follows the dynamic stiffness at 2X, force about constant",
     }
-    description: ClassVar[str] = "coupling misalignment, 2X force at bearing 1 (x and y)"
+    description: ClassVar[str] = "misalignment, 2X forces at both bearings (x and y, forward and backward)"
 
     def lin_names(self, ctx):
-        return ("fx_2x_cos_n", "fx_2x_sin_n", "fy_2x_cos_n", "fy_2x_sin_n")
+        return tuple(f"f{axis}_{b}_2x_{part}_n" for b in BEARINGS for axis in "xy" for part in ("cos", "sin"))
 
     def basis(self, ctx, nl):
         two = 2 * ctx.shaft.angle_rad
-        s = ctx.rig.bearing1_position_m
         zero = np.zeros_like(two)
-        cols = [ctx.response(models.point_generalized_force(ctx.rig, s, np.cos(two), zero)),
-                ctx.response(models.point_generalized_force(ctx.rig, s, np.sin(two), zero)),
-                ctx.response(models.point_generalized_force(ctx.rig, s, zero, np.cos(two))),
-                ctx.response(models.point_generalized_force(ctx.rig, s, zero, np.sin(two)))]
+        cols = []
+        for s in (ctx.rig.bearing1_position_m, ctx.rig.bearing2_position_m):
+            cols += [ctx.response(models.point_generalized_force(ctx.rig, s, np.cos(two), zero)),
+                     ctx.response(models.point_generalized_force(ctx.rig, s, np.sin(two), zero)),
+                     ctx.response(models.point_generalized_force(ctx.rig, s, zero, np.cos(two))),
+                     ctx.response(models.point_generalized_force(ctx.rig, s, zero, np.sin(two)))]
         return None, np.stack(cols, axis=2)
 
     def physical(self, nl, lin):
-        return {"force_2x_x_amplitude_n": float(abs(complex(lin[0], lin[1]))),
-                "force_2x_y_amplitude_n": float(abs(complex(lin[2], lin[3])))}
+        out = {}
+        for i, b in enumerate(BEARINGS):
+            a, bb, c, d = (float(v) for v in lin[4 * i:4 * i + 4])
+            fx, fy = complex(a, -bb), complex(c, -d)  # f = Re[F e^{i 2 theta}]
+            out[f"force_2x_{b}_x_amplitude_n"] = abs(fx)
+            out[f"force_2x_{b}_y_amplitude_n"] = abs(fy)
+            out[f"force_2x_{b}_forward_n"] = abs(fx + 1j * fy) / 2
+            out[f"force_2x_{b}_backward_n"] = abs(fx.conjugate() + 1j * fy.conjugate()) / 2
+        return out

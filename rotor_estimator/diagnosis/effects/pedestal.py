@@ -1,6 +1,6 @@
 # Copyright 2026 rotor_estimator developers
 # SPDX-License-Identifier: Apache-2.0
-"""Pedestal flexibility: the bearing housings on a mass-spring-damper foundation."""
+"""Pedestal flexibility: the bearing housings on a mass-spring-damper foundation, in four physical forms."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -12,11 +12,40 @@ from rotor_estimator.diagnosis import models
 from rotor_estimator.diagnosis.effects.base import Effect
 
 
+FOUNDATIONS = ("separate", "common")
+PROBE_MOUNTS = ("absolute", "relative")
+
+
 @dataclass(frozen=True)
 class PedestalFlexibility(Effect):
-    """Bearing housings on a mass-spring-damper foundation (isotropic, both bearings)."""
+    """Bearing housings on an isotropic mass-spring-damper foundation.
+
+    ``foundation``: a separate mass under each bearing, or one common mass carrying both housings;
+    ``probes``: fixed to ground (absolute shaft motion) or to the housings (shaft relative to the
+    housing). The search fits every form (:meth:`variants`) and keeps the best; the report names it.
+    """
+
+    foundation: str = "separate"
+    probes: str = "absolute"
+
+    def __post_init__(self) -> None:
+        if self.foundation not in FOUNDATIONS:
+            raise ValueError(f"pedestal.foundation: {self.foundation!r} is not one of {FOUNDATIONS}")
+        if self.probes not in PROBE_MOUNTS:
+            raise ValueError(f"pedestal.probes: {self.probes!r} is not one of {PROBE_MOUNTS}")
+
+    def variants(self):
+        return tuple(PedestalFlexibility(f, p) for f in FOUNDATIONS for p in PROBE_MOUNTS)
+
+    @property
+    def form(self) -> str:
+        return f"{self.foundation} foundation mass{'es' if self.foundation == 'separate' else ''}, " \
+               f"probes {'on the housings' if self.probes == 'relative' else 'fixed to ground'}"
 
     name: ClassVar[str] = "pedestal"
+    kind: ClassVar[str] = "structural"
+    starts_from_prior: ClassVar[bool] = True
+    pair_always_refitted: ClassVar[bool] = True
     responses: ClassVar[dict[str, str]] = {
         "housing_sensor": "shows housing motion at the rotor frequencies",
         "speed_change": "a resonance of the housing moves the 1X phase",
@@ -54,8 +83,9 @@ class PedestalFlexibility(Effect):
 
         m, k, c = self.housing(nl)
         mats, r = ctx.mats, ctx.coefficients
-        model = (lambda w: models.pedestal_state_matrix(mats, r, w, m, k, c), models.pedestal_input(mats),
-                 models.pedestal_output(mats))
+        t = models.HOUSING_MAPS[self.foundation]
+        model = (lambda w: models.pedestal_state_matrix(mats, r, w, m, k, c, t), models.pedestal_input(mats, t),
+                 models.pedestal_output(mats, t, relative=self.probes == "relative"))
         return replace(ctx, response_model=model, _cache={})
 
     def physical(self, nl, lin):

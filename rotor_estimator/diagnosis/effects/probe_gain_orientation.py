@@ -23,6 +23,7 @@ class ProbeGainOrientation(Effect):
     """
 
     name: ClassVar[str] = "probe_gain_orientation"
+    kind: ClassVar[str] = "measurement"
     responses: ClassVar[dict[str, str]] = {
         "probe_calibration": "the calibration shows the gain or angle error",
     }

@@ -16,6 +16,7 @@ class ProbeRunout(Effect):
     """Mechanical/electrical runout: a pattern fixed in shaft angle, Fourier series per probe."""
 
     name: ClassVar[str] = "probe_runout"
+    kind: ClassVar[str] = "measurement"
     responses: ClassVar[dict[str, str]] = {
         "slow_roll": "persists at full amplitude (surface/electrical runout)",
         "speed_change": "same amplitude and angle at every speed",

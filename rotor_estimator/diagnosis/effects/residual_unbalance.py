@@ -17,6 +17,8 @@ class ResidualUnbalance(Effect):
 
     forcing: ClassVar[bool] = True
     name: ClassVar[str] = "residual_unbalance"
+    kind: ClassVar[str] = "force"
+    refit_always: ClassVar[bool] = True
     responses: ClassVar[dict[str, str]] = {
         "slow_roll": "vanishes (force grows as speed^2)",
         "speed_change": "1X grows as speed^2 through the dynamic stiffness",

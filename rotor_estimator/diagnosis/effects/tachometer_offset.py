@@ -18,6 +18,8 @@ class TachometerOffset(Effect):
 
     forcing: ClassVar[bool] = True
     name: ClassVar[str] = "tach_offset"
+    kind: ClassVar[str] = "force"
+    refit_always: ClassVar[bool] = True
     responses: ClassVar[dict[str, str]] = {
         "slow_roll": "vanishes (it rotates the known imbalance response)",
         "speed_change": "same angle at every speed",

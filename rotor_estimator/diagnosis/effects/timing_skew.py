@@ -23,23 +23,32 @@ def delayed(y_m: np.ndarray, v_m_s: np.ndarray, delay_s: float, period_s: float)
     return ((2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1)
 
 
+#: Whole-sample delays tried per channel for the search's scan start (a DAQ that drops or buffers samples).
+SCAN_SAMPLES = 6
+
+
 @dataclass(frozen=True)
 class TimingSkew(Effect):
-    """Sampling skew between channels: ``y_c(t - tau_c)``, tau relative to xp1 (exact delay, not a derivative).
+    """Sampling skew of each channel against the model's clock: ``y_c(t - tau_c)`` (exact delay, not a derivative).
 
-    The delays are nonlinear parameters: the skewed channel is the nominal output delayed
-    by cubic Hermite interpolation on the nominal probe displacement and velocity, so a
-    delay of a sizeable fraction of a revolution is modelled as well as a small one.
-    The search starts from the derivative (first-order) estimate ``tau = -<e, v>/<v, v>``.
+    All four channels carry a delay, xp1 included, so a late probe plane (both its channels behind
+    the keyphasor and the hammer's force channel) is one effect, not a phase error forced onto an
+    unbalance or a probe map. The delays are nonlinear parameters: the skewed channel is the
+    nominal output delayed by cubic Hermite interpolation on the nominal probe displacement and
+    velocity, so a delay of several samples, up to a quarter revolution, is modelled as well as a
+    small one. The search starts from the derivative (first-order) estimate
+    ``tau = -<e, v>/<v, v>`` and from a per-channel scan over whole-sample delays
+    (+-:data:`SCAN_SAMPLES`).
     """
 
     name: ClassVar[str] = "timing_skew"
+    kind: ClassVar[str] = "signal_transform"
     responses: ClassVar[dict[str, str]] = {
         "daq_test_signal": "the channels show a time offset on the common signal",
         "speed_change": "the phase error grows in proportion to speed",
     }
-    description: ClassVar[str] = "timing skew between probe channels (relative to xp1)"
-    nl_names: ClassVar[tuple[str, ...]] = ("skew_yp1_us", "skew_xp2_us", "skew_yp2_us")
+    description: ClassVar[str] = "timing skew of each probe channel (whole or fractional samples)"
+    nl_names: ClassVar[tuple[str, ...]] = tuple(f"skew_{c}_us" for c in CHANNELS)
 
     def lin_names(self, ctx):
         return ()
@@ -47,24 +56,37 @@ class TimingSkew(Effect):
     def nl_grid(self, ctx):
         v = ctx.v_nom_m_s[ctx.mask]
         e = ctx.residual_m[ctx.mask]
-        tau = np.array([-(e[:, c] @ v[:, c]) / max(float(v[:, c] @ v[:, c]), 1e-300) for c in (1, 2, 3)])
-        bound = self.nl_bounds(ctx)[1][0]
-        return [np.clip(tau / UNIT_SKEW_S, -0.9 * bound, 0.9 * bound), np.zeros(3)]
+        bound = 0.9 * self.nl_bounds(ctx)[1][0]
+        tau = np.array([-(e[:, c] @ v[:, c]) / max(float(v[:, c] @ v[:, c]), 1e-300) for c in range(4)])
+        return [np.clip(tau / UNIT_SKEW_S, -bound, bound), np.clip(self._scan(ctx), -bound, bound), np.zeros(4)]
+
+    def _scan(self, ctx) -> np.ndarray:
+        """Per channel, the whole-sample delay (us) that best matches the measured channel to the delayed nominal."""
+        y, v, measured = ctx.y_nom_m, ctx.v_nom_m_s, ctx.y_m
+        best = np.zeros(4)
+        for c in range(4):
+            costs = []
+            for k in range(-SCAN_SAMPLES, SCAN_SAMPLES + 1):
+                d = measured[:, c] - delayed(y[:, c], v[:, c], k * ctx.period_s, ctx.period_s)
+                d = d[ctx.mask] - np.mean(d[ctx.mask])  # the DC offsets are free
+                costs.append(float(d @ d))
+            best[c] = (int(np.argmin(costs)) - SCAN_SAMPLES) * ctx.period_s / UNIT_SKEW_S
+        return best
 
     def nl_bounds(self, ctx):
         b = 0.25 * 2 * np.pi / max(ctx.mean_speed_rad_s, 1.0) / UNIT_SKEW_S  # a quarter revolution
-        return np.full(3, -b), np.full(3, b)
+        return np.full(4, -b), np.full(4, b)
 
     def basis(self, ctx, nl):
         y, v = ctx.y_nom_m, ctx.v_nom_m_s
         off = np.zeros_like(y)
-        for i, c in enumerate((1, 2, 3)):
-            if nl[i] != 0.0:
-                off[:, c] = delayed(y[:, c], v[:, c], nl[i] * UNIT_SKEW_S, ctx.period_s) - y[:, c]
+        for c in range(4):
+            if nl[c] != 0.0:
+                off[:, c] = delayed(y[:, c], v[:, c], nl[c] * UNIT_SKEW_S, ctx.period_s) - y[:, c]
         return off, np.zeros((y.shape[0], 4, 0))
 
     def physical(self, nl, lin):
-        return {f"skew_{ch}_s": float(v * UNIT_SKEW_S) for ch, v in zip(CHANNELS[1:], nl)}
+        return {f"skew_{ch}_s": float(v * UNIT_SKEW_S) for ch, v in zip(CHANNELS, nl)}
 
     transforms_signal: ClassVar[bool] = True
 
@@ -74,10 +96,10 @@ class TimingSkew(Effect):
         if out.size == 0:
             return out
         flat = out.reshape(out.shape[0], 4, -1)
-        for i, c in enumerate((1, 2, 3)):
-            if nl[i] == 0.0:
+        for c in range(4):
+            if nl[c] == 0.0:
                 continue
             for k in range(flat.shape[2]):
                 sig = flat[:, c, k].copy()
-                flat[:, c, k] = delayed(sig, np.gradient(sig, ctx.period_s), nl[i] * UNIT_SKEW_S, ctx.period_s)
+                flat[:, c, k] = delayed(sig, np.gradient(sig, ctx.period_s), nl[c] * UNIT_SKEW_S, ctx.period_s)
         return flat.reshape(out.shape)

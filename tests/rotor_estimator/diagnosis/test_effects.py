@@ -126,3 +126,71 @@ def test_unbalance_on_a_true_pedestal_is_recovered_where_the_rigid_fit_is_biased
     assert np.all(np.abs(carried.lin - gains) < 3 * carried.lin_std), (carried.lin, carried.lin_std)
     assert np.all(carried.residual_rms_m < 1.1e-6)
     assert np.max(np.abs(rigid.lin - gains) / rigid.lin_std) > 10
+
+
+def test_each_effect_declares_its_kind_and_the_search_names_no_effect():
+    """Adding an effect touches its own module only: each declares a kind consistent with its flags (a force
+    is ``forcing``, a delay ``transforms_signal``, only structural effects restart from the prior), and the
+    search (ranking.py) holds no effect name as a string constant to special-case it."""
+    import ast
+    from pathlib import Path
+
+    from rotor_estimator.diagnosis import ranking
+    from rotor_estimator.diagnosis.effects import LIBRARY
+
+    for e in LIBRARY:
+        assert e.kind in ("force", "structural", "measurement", "signal_transform"), e.name
+        assert e.forcing == (e.kind == "force"), e.name
+        assert e.transforms_signal == (e.kind == "signal_transform"), e.name
+        if e.starts_from_prior or e.pair_always_refitted:
+            assert e.kind == "structural", e.name
+    constants = {n.value for n in ast.walk(ast.parse(Path(ranking.__file__).read_text()))
+                 if isinstance(n, ast.Constant) and isinstance(n.value, str)}
+    assert not constants & {e.name for e in LIBRARY}
+
+
+@pytest.mark.parametrize("foundation,probes", [("separate", "relative"), ("common", "absolute"),
+                                               ("common", "relative")])
+def test_every_pedestal_form_on_a_stiff_foundation_is_the_rigid_model(setting, foundation, probes):
+    """Limit, for each foundation form: a 40 kHz, 50 kg foundation (separate masses or one common mass, probes on
+    the ground or on the housings) is ground, so the carried unbalance columns equal the rigid ones to 0.1 %."""
+    _, _, _, ctx = setting
+    stiff = PedestalFlexibility(foundation, probes).carrier(ctx, np.log10([40_000.0, 0.05, 50.0]))
+    _, rigid = ResidualUnbalance().basis(ctx, np.zeros(0))
+    _, carried = ResidualUnbalance().basis(stiff, np.zeros(0))
+    rows = ctx.mask
+    assert np.max(np.abs(carried[rows] - rigid[rows])) < 1e-3 * np.max(np.abs(rigid[rows]))
+
+
+def test_common_foundation_on_stiff_bearings_rocks_as_one_body_at_its_textbook_frequency():
+    """Physics of the common-mass form: with bearings 10^4 x stiffer than the foundation spring, shaft and
+    foundation translate as one body, so the lowest mode is sqrt(k_f / (m_f + m_shaft)) in x and in y (to 0.5 %),
+    and relative probes see (almost) none of that motion while absolute ones see all of it."""
+    from rotor_estimator.core.model import rotor_matrices
+    from rotor_estimator.diagnosis import models
+
+    rig = load_rig_file().rig
+    mats = rotor_matrices(rig)
+    stiff_bearings = np.array([1e10, 0.0, 0.0, 1e10, 10.0, 0.0, 0.0, 10.0])
+    m_f, k_f = 4.0, 1e6
+    a = models.pedestal_state_matrix(mats, stiff_bearings, 0.0, m_f, k_f, 0.0, models.HOUSING_MAPS["common"])
+    assert a.shape == (12, 12)
+    freqs = np.sort(np.abs(np.linalg.eigvals(a).imag)) / (2 * np.pi)
+    expect = math.sqrt(k_f / (m_f + rig.shaft_mass_kg)) / (2 * np.pi)
+    assert abs(freqs[0] / expect - 1) < 5e-3 and abs(freqs[2] / expect - 1) < 5e-3  # x and y, +- pairs
+    # the body mode's shape: shaft and foundation move together, so the relative output is ~0 there
+    w, v = np.linalg.eig(a)
+    mode = v[:, np.argmin(np.abs(np.abs(w.imag) / (2 * np.pi) - expect))]
+    absolute = models.pedestal_output(mats, models.HOUSING_MAPS["common"])[:4] @ mode
+    relative = models.pedestal_output(mats, models.HOUSING_MAPS["common"], relative=True)[:4] @ mode
+    assert np.linalg.norm(relative) < 1e-3 * np.linalg.norm(absolute)
+
+
+def test_pedestal_forms_are_validated_and_named():
+    """A pedestal form outside the declared ones is refused naming the field; the variants cover all four forms."""
+    with pytest.raises(ValueError, match="pedestal.foundation"):
+        PedestalFlexibility("floating")
+    forms = {(v.foundation, v.probes) for v in PedestalFlexibility().variants()}
+    assert forms == {("separate", "absolute"), ("separate", "relative"), ("common", "absolute"),
+                     ("common", "relative")}
+    assert "common" in PedestalFlexibility("common").form

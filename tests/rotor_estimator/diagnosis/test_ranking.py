@@ -22,17 +22,17 @@ warnings.filterwarnings("ignore", category=RuntimeWarning)
 
 
 def test_skew_transform_delays_another_effects_contribution_per_channel():
-    """A skewed probe sees every contribution late: channel c of any column is delayed by tau_c, xp1 untouched."""
+    """A skewed probe sees every contribution late: channel c of any column is delayed by tau_c (xp1 by 0 here)."""
     h, w = 50e-6, 2 * np.pi * 2 * 250.0  # a 2X component at 15 krpm
     t = np.arange(4000) * h
     cols = np.stack([np.stack([np.sin(w * t + k)] * 4, axis=1) for k in range(2)], axis=2)  # (N, 4, 2)
-    taus_us = np.array([40.0, -25.0, 90.0])
+    taus_us = np.array([0.0, 40.0, -25.0, 90.0])
     out = TimingSkew().transform(SimpleNamespace(period_s=h), taus_us, cols)
     sel = slice(10, -10)
     assert np.array_equal(out[:, 0], cols[:, 0])
-    for i, c in enumerate((1, 2, 3)):
+    for c in (1, 2, 3):
         for k in range(2):
-            expect = np.sin(w * (t - taus_us[i] * 1e-6) + k)
+            expect = np.sin(w * (t - taus_us[c] * 1e-6) + k)
             assert np.max(np.abs(out[sel, c, k] - expect[sel])) < 2e-3
 
 
@@ -75,9 +75,13 @@ def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
     # both members' parameters come from the joint pair fit: the 2X forces seen through the skewed probes
     mis = rk.best if rk.best.name == "misalignment" else rk.second
     for axis, (c, s) in (("x", effects.misalignment_n[:2]), ("y", effects.misalignment_n[2:])):
-        value, std = mis.physical[f"force_2x_{axis}_amplitude_n"], mis.physical_std[f"force_2x_{axis}_amplitude_n"]
+        key = f"force_2x_b1_{axis}_amplitude_n"
+        value, std = mis.physical[key], mis.physical_std[key]
         assert abs(value - math.hypot(c, s)) < max(3 * std, 0.05 * math.hypot(c, s)), (axis, value, std)
         assert 0 < std < 0.1 * math.hypot(c, s)
+        # nothing acts at bearing 2: its fitted 2X force is zero within 3 sigma (an amplitude is >= 0)
+        key2 = f"force_2x_b2_{axis}_amplitude_n"
+        assert mis.physical[key2] < 3 * mis.physical_std[key2] + 0.05 * math.hypot(c, s), (key2, mis.physical[key2])
 
 
 @pytest.mark.slow
