@@ -1,0 +1,27 @@
+# Copyright 2026 rotor_estimator developers
+# SPDX-License-Identifier: Apache-2.0
+"""Many recordings, one table: a command over every recording on Dask (local processes by default).
+
+Dask is imported only when a batch runs (:mod:`.runner`), so importing this package is cheap.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from rotor_estimator.lazy_exports import lazy_exports
+
+if TYPE_CHECKING:
+    from rotor_estimator.batch.driver import BatchSummary, run_batch
+    from rotor_estimator.batch.runner import TaskOutcome, map_ordered, run_tasks
+    from rotor_estimator.batch.table import columns, read_table, write_table
+    from rotor_estimator.batch.tasks import BatchOptions, expand_inputs, run_row
+
+_EXPORTS = {"BatchSummary": "rotor_estimator.batch.driver", "run_batch": "rotor_estimator.batch.driver",
+            "TaskOutcome": "rotor_estimator.batch.runner", "map_ordered": "rotor_estimator.batch.runner",
+            "run_tasks": "rotor_estimator.batch.runner", "columns": "rotor_estimator.batch.table",
+            "read_table": "rotor_estimator.batch.table", "write_table": "rotor_estimator.batch.table",
+            "BatchOptions": "rotor_estimator.batch.tasks", "expand_inputs": "rotor_estimator.batch.tasks",
+            "run_row": "rotor_estimator.batch.tasks"}
+__all__ = ["BatchSummary", "run_batch", "TaskOutcome", "map_ordered", "run_tasks", "columns", "read_table",
+           "write_table", "BatchOptions", "expand_inputs", "run_row"]
+__getattr__ = lazy_exports(__name__, _EXPORTS)
