@@ -7,10 +7,11 @@ bars; diagnose: verdict counts and shrink against the gap; virtual-sensing: cove
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
-from rotor_estimator.batch.table import COEFFICIENT_COLUMNS, COEFFICIENT_STD_COLUMNS, OK
+from rotor_estimator.batch.table import COEFFICIENT_COLUMNS, COEFFICIENT_STD_COLUMNS, OK, normalize
 from rotor_estimator.core.config import COEFFICIENT_NAMES, COEFFICIENT_UNITS
 from rotor_estimator.core.errors import InputError
 
@@ -27,9 +28,13 @@ def _pyplot() -> Any:
     return plt
 
 
+def _num(value: float | None) -> float:
+    return math.nan if value is None else float(value)
+
+
 def _x_values(rows: list[dict], x: str) -> tuple[list, str]:
     if x == "speed":
-        return [r["speed_rpm"] for r in rows], "speed (rpm)"
+        return [_num(r["speed_rpm"]) for r in rows], "speed (rpm)"
     import datetime
 
     values = [datetime.datetime.fromisoformat(r["recording_start_utc"]) if r["recording_start_utc"] else None
@@ -44,6 +49,7 @@ def plot_table(rows: list[dict], command: str, path: str | Path, *, x: str = "sp
     if x not in X_AXES:
         raise InputError(f"--x must be one of {', '.join(X_AXES)}, got {x!r}")
     plt = _pyplot()
+    rows = [normalize(r, command) for r in rows]
     ok = [r for r in rows if r["status"] == OK]
     n_err = len(rows) - len(ok)
     title = f"batch {command}: {len(ok)} ok, {n_err} error(s)"
@@ -54,8 +60,8 @@ def plot_table(rows: list[dict], command: str, path: str | Path, *, x: str = "sp
         fig, axes = plt.subplots(2, 4, figsize=(14, 6), sharex=True)
         for ax, col, std, name, unit in zip(axes.ravel(), COEFFICIENT_COLUMNS, COEFFICIENT_STD_COLUMNS,
                                             COEFFICIENT_NAMES, COEFFICIENT_UNITS):
-            ys = [r[col] for r in ok]
-            es = [r[std] if r[std] is not None else 0.0 for r in ok]
+            ys = [_num(r[col]) for r in ok]
+            es = [_num(r[std]) for r in ok]
             ax.errorbar(xs, ys, yerr=es, fmt="o", ms=3, capsize=2)
             ax.set_title(f"{name} ({unit}), 1-sigma bars", fontsize=9)
             ax.grid(True, alpha=0.3)
@@ -73,14 +79,14 @@ def plot_table(rows: list[dict], command: str, path: str | Path, *, x: str = "sp
         a1.set_xticks(range(len(names)), names, rotation=30, ha="right", fontsize=8)
         a1.set_ylabel("recordings")
         a1.set_title("verdicts")
-        a2.scatter([r["gap_ratio_before"] for r in ok], [r["shrink_ratio"] for r in ok], s=12)
+        a2.scatter([_num(r["gap_ratio_before"]) for r in ok], [_num(r["shrink_ratio"]) for r in ok], s=12)
         a2.set_xlabel("gap: residual RMS / noise before")
         a2.set_ylabel("shrink ratio (before / after)")
         a2.grid(True, alpha=0.3)
     elif command == "virtual-sensing":
         fig, ax = plt.subplots(figsize=(8, 4))
-        ax.plot(range(len(ok)), [r["coverage_mean"] for r in ok], "o", label="mean coverage")
-        ax.plot(range(len(ok)), [r["coverage_min"] for r in ok], "v", label="lowest channel")
+        ax.plot(range(len(ok)), [_num(r["coverage_mean"]) for r in ok], "o", label="mean coverage")
+        ax.plot(range(len(ok)), [_num(r["coverage_min"]) for r in ok], "v", label="lowest channel")
         if ok:
             ax.axhline(ok[0]["confidence"], color="k", lw=0.8, ls="--", label="nominal")
         ax.set_xlabel("recording (table order)")

@@ -149,9 +149,9 @@ def _identify(path: Path, options: BatchOptions, row: dict) -> None:
     recording = load_recording_file(path, options.salvage)
     row.update(recording_facts(recording))
     out = identify_recordings(rig_file, [recording], method=options.method)
+    # the estimate also where the data do not determine it (identify hides it there): not_determined names them
     for e, col, std_col in zip(out.report.entries, COEFFICIENT_COLUMNS, COEFFICIENT_STD_COLUMNS):
-        d = e.as_dict()
-        row[col], row[std_col] = d["estimate"], d["predicted_std"]
+        row[col], row[std_col] = e.estimate, e.predicted_std
     q = out.quality
     row.update(method=out.res.method, converged=out.res.converged, residual_rms_m=q.get("residual_rms_m"),
                residual_over_noise=q.get("residual_over_noise"),
