@@ -6,16 +6,10 @@ Dask is imported only when a batch runs (:mod:`.runner`), so importing this pack
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from rotor_estimator.lazy_exports import lazy_exports
 
-if TYPE_CHECKING:
-    from rotor_estimator.batch.driver import BatchSummary, run_batch
-    from rotor_estimator.batch.runner import TaskOutcome, map_ordered, run_tasks
-    from rotor_estimator.batch.table import columns, read_table, write_table
-    from rotor_estimator.batch.tasks import BatchOptions, expand_inputs, run_row
-
+# No TYPE_CHECKING imports of the modules: the benchmarks import batch.runner, and batch.tasks imports
+# what the benchmarks define (the .npz recording format), so naming the modules here would close a cycle.
 _EXPORTS = {"BatchSummary": "rotor_estimator.batch.driver", "run_batch": "rotor_estimator.batch.driver",
             "TaskOutcome": "rotor_estimator.batch.runner", "map_ordered": "rotor_estimator.batch.runner",
             "run_tasks": "rotor_estimator.batch.runner", "columns": "rotor_estimator.batch.table",

@@ -148,19 +148,43 @@ def run_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
                 close_client(client, cluster)
 
 
+def iter_ordered(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int = 1, scheduler: str | None = None,
+                 inline: bool | None = None) -> Generator[Any, None, None]:
+    """``fn(item)`` for each item through :func:`run_tasks`, yielded in the items' order as soon as every
+    earlier one is done; the first error propagates. ``inline`` None: in this process when ``workers`` is 1
+    and no scheduler is given (as the benchmarks ran before), else on a cluster."""
+    items = list(items)
+    if inline is None:
+        inline = workers <= 1 and not scheduler
+    done: dict[int, Any] = {}
+    nxt = 0
+    results = run_tasks(fn, items, workers=workers, scheduler=scheduler, progress=False, inline=inline,
+                        raise_errors=True)
+    try:
+        for o in results:
+            done[o.index] = o.result
+            while nxt in done:
+                yield done.pop(nxt)
+                nxt += 1
+    finally:
+        results.close()
+
+
 def map_ordered(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int = 1, scheduler: str | None = None,
-                progress: Callable[[int], None] | None = None) -> list[Any]:
-    """``[fn(item) for item in items]`` through :func:`run_tasks` (in this process when ``workers`` is 1
-    and no scheduler is given, as the benchmarks did before), results in the items' order; the first
-    error propagates. ``progress(1)`` is called as each result arrives."""
-    out: dict[int, Any] = {}
-    inline = workers <= 1 and not scheduler
-    for o in run_tasks(fn, items, workers=workers, scheduler=scheduler, progress=False, inline=inline,
-                       raise_errors=True):
-        out[o.index] = o.result
+                inline: bool | None = None, progress: Callable[[int], Any] | None = None) -> list[Any]:
+    """``[fn(item) for item in items]`` through :func:`iter_ordered`; ``progress(1)`` after each result
+    in order."""
+    out = []
+    for r in iter_ordered(fn, items, workers=workers, scheduler=scheduler, inline=inline):
+        out.append(r)
         if progress:
             progress(1)
-    return [out[i] for i in range(len(items))]
+    return out
+
+
+def call(thunk: Callable[[], Any]) -> Any:
+    """``thunk()``: runs ``functools.partial`` tasks of different functions through one runner."""
+    return thunk()
 
 
 def worker_name() -> str:

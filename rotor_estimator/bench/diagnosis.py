@@ -17,13 +17,12 @@ from __future__ import annotations
 
 import json
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from rotor_estimator.bench.blind import MIN_GAP, load_recording, write_blind_set
-from rotor_estimator.bench.workers import single_thread_worker
+from rotor_estimator.batch.runner import map_ordered
 
 
 def diagnose_case(case_dir: str) -> dict:
@@ -144,8 +143,8 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
     write_blind_set(out, n_cases, seed, use_ross=use_ross, progress=progress, jobs=jobs)
     t_gen = time.time() - t0
     case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
-    with ProcessPoolExecutor(max_workers=max(1, jobs), initializer=single_thread_worker) as pool:
-        results = list(pool.map(diagnose_case, case_dirs))
+    # a local Dask cluster of ``jobs`` single-thread processes (rotor_estimator.batch.runner), as the pool was
+    results = map_ordered(diagnose_case, case_dirs, workers=max(1, jobs), inline=False)
     labels = json.loads((out / "labels" / "labels.json").read_text())  # opened only now
     s = score(results, labels)
     s["generation_seconds"] = t_gen
