@@ -31,6 +31,19 @@ def default_workers() -> int:
     return max(1, os.cpu_count() or 1)
 
 
+def single_thread_worker() -> None:
+    """One BLAS thread in this process (``N`` workers on ``N`` cores, no oversubscription): the thread
+    environment variables for libraries loaded later, threadpoolctl for those already loaded."""
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[k] = "1"
+    try:
+        from threadpoolctl import threadpool_limits
+
+        globals()["LIMITS"] = threadpool_limits(1)
+    except ImportError:
+        pass
+
+
 def _single_thread_plugin() -> Any:
     """A worker plugin that limits BLAS to one thread in each worker (also on a remote cluster)."""
     from distributed.diagnostics.plugin import WorkerPlugin
@@ -39,8 +52,6 @@ def _single_thread_plugin() -> Any:
         name = "rotor-estimator-single-thread-blas"
 
         def setup(self, worker: Any) -> None:
-            from rotor_estimator.bench.workers import single_thread_worker
-
             single_thread_worker()
 
     return SingleThreadBlas()

@@ -3,7 +3,7 @@
 """One table row per recording: run the single-recording command's own core function and flatten its
 summary into the columns of :mod:`rotor_estimator.batch.table`.
 
-``replay`` calls :func:`rotor_estimator.io.replay.replay_bag`, ``identify``
+``replay`` calls :func:`rotor_estimator.ros.replay.replay_bag`, ``identify``
 :func:`rotor_estimator.identification.recordings.identify_recordings`, ``diagnose``
 :func:`rotor_estimator.diagnosis.api.diagnose` on the recording
 :func:`rotor_estimator.io.recordings.load_recording_file` opens, ``virtual-sensing``
@@ -112,7 +112,7 @@ def _replay(path: Path, options: BatchOptions, row: dict) -> None:
     import tempfile
 
     from rotor_estimator.io.recordings import load_recording_file
-    from rotor_estimator.io.replay import replay_bag
+    from rotor_estimator.ros.replay import replay_bag
     from rotor_estimator.core.config import COEFFICIENT_NAMES
 
     recording = load_recording_file(path, options.salvage)

@@ -157,7 +157,8 @@ def add_parser(subparsers: Any) -> None:
 
     b = bench.add_parser("batch", help="wall time of `batch` over simulated recordings with 1 and 2 workers")
     b.add_argument("--recordings", type=cli_types.positive_int, default=30, help="simulated bags (default 30)")
-    b.add_argument("--command", choices=("replay", "identify", "diagnose"), default="replay")
+    b.add_argument("--command", choices=("replay", "identify", "diagnose"), default="replay",
+                   help="the batch command to time (default replay)")
     b.add_argument("--workers", type=cli_types.positive_int, nargs="+", default=[1, 2],
                    help="worker counts to time, in order (default 1 2)")
     b.add_argument("--duration", type=float, default=0.1, help="simulated seconds per bag (default 0.1)")

@@ -19,7 +19,7 @@ from typing import Any
 from rotor_estimator.cli import arguments as cli_types
 from rotor_estimator.cli.arguments import add_bag_argument, bag_from_args
 from rotor_estimator.core.errors import InputError
-from rotor_estimator.io.replay import replay_bag
+from rotor_estimator.ros.replay import replay_bag
 
 __all__ = ["replay_bag", "format_replay", "cmd_replay", "add_parser", "EXIT_DIVERGED"]
 

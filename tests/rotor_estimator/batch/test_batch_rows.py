@@ -9,7 +9,7 @@ import numpy as np
 from rotor_estimator.batch.table import COEFFICIENT_COLUMNS, COEFFICIENT_STD_COLUMNS, read_table
 from rotor_estimator.cli.main import main
 from rotor_estimator.core.config import COEFFICIENT_NAMES
-from rotor_estimator.io.replay import replay_bag
+from rotor_estimator.ros.replay import replay_bag
 
 
 def test_batch_replay_rows_equal_the_replay_core_and_a_truncated_bag_is_an_error_row(bag_copy, tmp_path):
