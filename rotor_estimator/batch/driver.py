@@ -8,6 +8,7 @@ batch ends for any reason (an interrupt keeps every finished row).
 """
 from __future__ import annotations
 
+import datetime
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,7 +16,7 @@ from typing import Any, Callable
 
 from rotor_estimator.batch.runner import run_tasks
 from rotor_estimator.batch.table import ERROR, finished, read_table, table_format, write_table
-from rotor_estimator.batch.tasks import BatchOptions, run_row
+from rotor_estimator.batch.tasks import BatchOptions, package_version, run_row
 from rotor_estimator.core.errors import InputError
 
 
@@ -90,7 +91,8 @@ def run_batch(options: BatchOptions, recordings: list[str], out: str | Path | No
                     if outcome.error is not None:  # the worker died or the task could not run at all
                         path = outcome.item[0]
                         row = {"recording": path, "command": options.command, "status": ERROR,
-                               "error": outcome.error}
+                               "error": outcome.error, "version": package_version(),
+                               "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
                     writer.add(row)
                     computed += 1
                     errors += row["status"] == ERROR

@@ -20,7 +20,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
     from rotor_estimator.batch.table import table_bytes
     from rotor_estimator.batch.tasks import BatchOptions, expand_inputs
 
-    options = BatchOptions(args.batch_command, rig_path=str(args.rig) if args.rig else None,
+    # absolute: the workers may run in another directory (or on another machine with the same file system)
+    options = BatchOptions(args.batch_command, rig_path=str(Path(args.rig).resolve()) if args.rig else None,
                            rotor=args.rotor, passes=args.passes, method=args.method,
                            salvage=args.salvage).validate()
     recordings, skipped_files = expand_inputs(args.inputs)
