@@ -61,6 +61,7 @@ def open_client(workers: int | None = None, scheduler: str | None = None) -> tup
     """(client, local cluster or None): connect to ``scheduler`` or start a local cluster of ``workers``
     processes with one thread and one BLAS thread each."""
     import logging
+    import warnings
 
     try:
         from distributed import Client, LocalCluster
@@ -77,8 +78,10 @@ def open_client(workers: int | None = None, scheduler: str | None = None) -> tup
         if n < 1:
             raise InputError(f"--workers must be >= 1, got {n}")
         env = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                               silence_logs=logging.CRITICAL, env=env)
+        with warnings.catch_warnings():  # "Port 8787 is already in use": another cluster's dashboard, harmless
+            warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                                   silence_logs=logging.CRITICAL, env=env)
         client = Client(cluster)
     try:
         client.register_plugin(_single_thread_plugin())
