@@ -9,7 +9,6 @@ from rotor_estimator.core.config import SEED_RIG_PATH
 from rotor_estimator.diagnosis.api import diagnose
 
 
-@pytest.mark.slow
 def test_batch_diagnose_row_equals_the_diagnosis_summary(short_bags, dask_cluster, seed_rig_file):
     """One short bag through `batch diagnose` on a cluster: verdict, second effect, top two, residual RMS
     before/after, noise and shrink ratio equal `diagnose(...).summary()` run here; the gap ratios are
