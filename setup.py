@@ -43,6 +43,11 @@ setup(
         "matplotlib>=3.6",
         "threadpoolctl>=3.1",
         "h5py>=3.8",  # HDF5 DAQ exports (import)
+        # `rotor-estimator batch` and the benchmarks' worker pool: a local Dask cluster or a remote one
+        # (imported only when a batch runs); the batch table as Parquet or CSV
+        "dask>=2023.1",
+        "distributed>=2023.1",
+        "pyarrow>=12",
     ],
     extras_require={
         # A real rclpy from the ROS 2 Kilted wheels, for machines without a system ROS 2.

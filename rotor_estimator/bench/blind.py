@@ -451,15 +451,13 @@ def write_blind_set(out_dir: str | Path, n_cases: int = 40, seed: int = 2024, *,
         if progress:
             progress(c.case_id)
 
-    if jobs > 1:
-        from concurrent.futures import ProcessPoolExecutor
+    if jobs > 1:  # a local Dask cluster of single-thread processes (rotor_estimator.batch.runner)
+        import functools
 
-        from rotor_estimator.bench.workers import single_thread_worker
+        from rotor_estimator.batch.runner import call, iter_ordered
 
-        with ProcessPoolExecutor(max_workers=jobs, initializer=single_thread_worker) as pool:
-            futures = [pool.submit(fn, a) for fn, a in tasks]
-            for f in futures:
-                _store(f.result())
+        for case in iter_ordered(call, [functools.partial(fn, a) for fn, a in tasks], workers=jobs):
+            _store(case)
     else:
         for fn, a in tasks:
             _store(fn(a))

@@ -17,13 +17,12 @@ from __future__ import annotations
 
 import json
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from rotor_estimator.bench.blind import MIN_GAP, load_recording, write_blind_set
-from rotor_estimator.bench.workers import single_thread_worker
+from rotor_estimator.batch.runner import map_ordered
 
 
 def diagnose_case(case_dir: str) -> dict:
@@ -41,12 +40,10 @@ def diagnose_case(case_dir: str) -> dict:
         s = diagnose(load_recording(d / "recording.npz"), rig_file.rig, rig_file.estimator).summary()
     except Exception as exc:  # a failed case is scored as a miss, not a crash of the benchmark
         return {"case": d.name, "error": repr(exc), "seconds": time.time() - t0}
-    final = s["table"][-1] if s["second_effect"] != "none" else next(
-        (r for r in s["table"] if r["model"] == f"+ {s['best_effect']}"), s["table"][0])
     return {"case": d.name, "best_effect": s["best_effect"], "second_effect": s["second_effect"],
             "verdict_set": s["verdict_set"], "tie": s["tie"] is not None,
-            "coefficients": list(final["coefficients"].values()),
-            "coefficients_std": list(final.get("coefficients_std", {}).values()),
+            "coefficients": list(s["coefficients_verdict"].values()),
+            "coefficients_std": list(s["coefficients_verdict_std"].values()),
             "top_two": s["top_two"], "before": s["residual_rms_before"], "after": s["residual_rms_after"],
             "shrink_ratio": s["shrink_ratio"], "ranking": [(r["effect"], r["delta_bic"]) for r in s["ranking"][:3]],
             "seconds": time.time() - t0}
@@ -195,8 +192,8 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
     write_blind_set(out, n_cases, seed, use_ross=use_ross, progress=progress, jobs=jobs)
     t_gen = time.time() - t0
     case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
-    with ProcessPoolExecutor(max_workers=max(1, jobs), initializer=single_thread_worker) as pool:
-        results = list(pool.map(diagnose_case, case_dirs))
+    # a local Dask cluster of ``jobs`` single-thread processes (rotor_estimator.batch.runner), as the pool was
+    results = map_ordered(diagnose_case, case_dirs, workers=max(1, jobs), inline=False)
     labels = json.loads((out / "labels" / "labels.json").read_text())  # opened only now
     s = score(results, labels)
     s["generation_seconds"] = t_gen

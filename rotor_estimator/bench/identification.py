@@ -12,12 +12,12 @@ unknown where the scenario says so), and the mean run time.
 from __future__ import annotations
 
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from rotor_estimator.batch.runner import map_ordered
 from rotor_estimator.core.config import COEFFICIENT_NAMES, load_rig_file
 from rotor_estimator.core.errors import RotorEstimatorError
 from rotor_estimator.core.simulator import Impact, Scenario, paper_scenario, simulate
@@ -120,19 +120,8 @@ def run(runs: int = 20, *, rig_path=None, methods: tuple[str, ...] = METHODS, jo
     true = rig_file.rig.true_coefficients.as_array()
     chosen = [s for s in scenarios() if not only or any(o in s.name for o in only)]
     tasks = [(rig_path, bs, first_seed + i, methods) for bs in chosen for i in range(runs)]
-    if jobs > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            outs = []
-            for o in pool.map(_one_run, tasks):
-                outs.append(o)
-                if progress:
-                    progress(1)
-    else:
-        outs = []
-        for t in tasks:
-            outs.append(_one_run(t))
-            if progress:
-                progress(1)
+    # jobs > 1: a local Dask cluster of single-thread processes (rotor_estimator.batch.runner); 1: here
+    outs = map_ordered(_one_run, tasks, workers=jobs, progress=progress)
     cells = []
     for j, bs in enumerate(chosen):
         crlb = scenario_crlb(rig_file, bs)

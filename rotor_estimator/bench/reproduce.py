@@ -91,29 +91,41 @@ def case_crlb(rig_file: RigFile, case: str) -> np.ndarray:
     return bound_from_fisher(fim, len(t)).coefficient_std
 
 
-def run_case(rig_file: RigFile, case: str, runs: int, *, first_seed: int = 1,
-             progress: Callable[[int], None] | None = None, keep_example: bool = False) -> CaseResult:
+def reproduce_run(task: tuple[RigFile, str, int, bool]) -> dict:
+    """One Monte Carlo run of ``case`` with noise ``seed``: the final coefficients, the filter's std,
+    the mean NIS (and, ``keep_example``, the history and recording for the figures)."""
+    rig_file, case, seed, keep_example = task
     rig, config = rig_file.rig, rig_file.estimator
+    sim = simulate(rig, paper_scenario(case), seed=seed)
+    shaft = shaft_inputs_from_recording(sim.recording)
+    history_every = 10 if keep_example else 0
+    est = estimate(sim.recording, rig, config, shaft=shaft, history_every=history_every)
+    example: dict = {}
+    if history_every:
+        example = {"t_s": est.history_t_s[0], "coefficients": est.history_coefficients[0],
+                   "recording": sim.recording, "estimate": est.coefficients}
+    return {"coefficients": est.coefficients, "std": est.std, "nis": float(np.nanmean(est.last_pass.nis)),
+            "example": example}
+
+
+def run_case(rig_file: RigFile, case: str, runs: int, *, first_seed: int = 1,
+             progress: Callable[[int], None] | None = None, keep_example: bool = False, workers: int = 1,
+             scheduler: str | None = None) -> CaseResult:
+    """``runs`` seeded runs of ``case``: in this process (``workers`` 1), or on a local Dask cluster of
+    ``workers`` single-thread processes or the cluster at ``scheduler`` (:mod:`rotor_estimator.batch.runner`);
+    the same numbers either way."""
+    from rotor_estimator.batch.runner import map_ordered
+
+    rig = rig_file.rig
     if rig.true_coefficients is None:
         raise ValueError("the rig file has no true_coefficients: the reproduction needs them to simulate")
     true = rig.true_coefficients.as_array()
-    estimates, stds, nis = [], [], []
-    example: dict = {}
-    for i in range(runs):
-        sim = simulate(rig, paper_scenario(case), seed=first_seed + i)
-        shaft = shaft_inputs_from_recording(sim.recording)
-        history_every = 10 if (keep_example and i == 0) else 0
-        est = estimate(sim.recording, rig, config, shaft=shaft, history_every=history_every)
-        estimates.append(est.coefficients)
-        stds.append(est.std)
-        nis.append(float(np.nanmean(est.last_pass.nis)))
-        if history_every:
-            example = {"t_s": est.history_t_s[0], "coefficients": est.history_coefficients[0],
-                       "recording": sim.recording, "estimate": est.coefficients}
-        if progress:
-            progress(1)
-    return CaseResult(case=case, true=true, estimates=np.array(estimates), reported_std=np.array(stds),
-                      crlb_std=case_crlb(rig_file, case), nis_mean=np.array(nis), example=example)
+    tasks = [(rig_file, case, first_seed + i, keep_example and i == 0) for i in range(runs)]
+    outs = map_ordered(reproduce_run, tasks, workers=workers, scheduler=scheduler, progress=progress)
+    example = outs[0]["example"] if outs else {}
+    return CaseResult(case=case, true=true, estimates=np.array([o["coefficients"] for o in outs]),
+                      reported_std=np.array([o["std"] for o in outs]), crlb_std=case_crlb(rig_file, case),
+                      nis_mean=np.array([o["nis"] for o in outs]), example=example)
 
 
 def format_table(result: CaseResult) -> str:

@@ -61,6 +61,15 @@ def cmd_bench_identification(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_batch(args: argparse.Namespace) -> int:
+    from rotor_estimator.bench.batch_speed import format_result, run
+
+    result = run(args.recordings, args.command, tuple(args.workers), args.duration, args.rig,
+                 external_cluster=args.external_cluster, corrupt=args.corrupt)
+    print(json.dumps(result, indent=1) if args.json else format_result(result))
+    return 0
+
+
 def cmd_bench_virtual_sensing(args: argparse.Namespace) -> int:
     from rotor_estimator.bench.virtual_sensing import bench_virtual_sensing
 
@@ -146,3 +155,17 @@ def add_parser(subparsers: Any) -> None:
     b.set_defaults(func=cmd_bench_identification)
 
     add_virtual_sensing_bench(bench)
+
+    b = bench.add_parser("batch", help="wall time of `batch` over simulated recordings with 1 and 2 workers")
+    b.add_argument("--recordings", type=cli_types.positive_int, default=30, help="simulated bags (default 30)")
+    b.add_argument("--command", choices=("replay", "identify", "diagnose"), default="replay",
+                   help="the batch command to time (default replay)")
+    b.add_argument("--workers", type=cli_types.positive_int, nargs="+", default=[1, 2],
+                   help="worker counts to time, in order (default 1 2)")
+    b.add_argument("--duration", type=float, default=0.1, help="simulated seconds per bag (default 0.1)")
+    b.add_argument("--external-cluster", action="store_true",
+                   help="also run on a separately started LocalCluster (2 workers) by address; compare rows")
+    b.add_argument("--corrupt", action="store_true", help="add a truncated bag to the set (an error row)")
+    b.add_argument("--rig", type=Path, default=None)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_batch)

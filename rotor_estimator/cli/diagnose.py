@@ -14,20 +14,9 @@ from pathlib import Path
 
 from rotor_estimator.cli import arguments as cli_types
 from rotor_estimator.cli.arguments import add_bag_argument, bag_from_args
+from rotor_estimator.io.recordings import load_recording_file
 
-
-def _load(path: Path, salvage: bool = False):
-    from rotor_estimator.core.errors import InputError
-
-    if path.suffix == ".npz":
-        from rotor_estimator.bench.blind import load_recording
-
-        return load_recording(path)
-    if not path.exists():
-        raise InputError(f"{path}: no such bag or recording")
-    from rotor_estimator.io.bags import read_input_bag
-
-    return read_input_bag(path, salvage=salvage)
+__all__ = ["load_recording_file", "cmd_diagnose", "add_parser"]
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
@@ -40,7 +29,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 
     warnings.simplefilter("ignore", RuntimeWarning)
     rig_file = load_rig_file(args.rig)
-    recording = _load(Path(bag_from_args(args)), args.salvage)
+    recording = load_recording_file(Path(bag_from_args(args)), args.salvage)
     recording.meta.setdefault("source", str(bag_from_args(args)))
     stage = None if args.no_progress else (lambda text: print(f"rotor-estimator: diagnose: {text}", file=sys.stderr,
                                                                 flush=True))

@@ -11,12 +11,12 @@ import argparse
 import os
 import sys
 
-from rotor_estimator.cli import (bench, diagnose, identify, import_data, plan, replay, reproduce, simulate,
+from rotor_estimator.cli import (batch, bench, diagnose, identify, import_data, plan, replay, reproduce, simulate,
                                  virtual_sensing)
 from rotor_estimator.core.errors import RotorEstimatorError
 
 #: The subcommands, in the order ``--help`` lists them; each module has ``add_parser(subparsers)``.
-COMMANDS = (reproduce, bench, replay, simulate, import_data, diagnose, plan, identify, virtual_sensing)
+COMMANDS = (reproduce, bench, replay, simulate, import_data, diagnose, plan, identify, virtual_sensing, batch)
 
 
 # ---------------------------------------------------------------------------------- parser

@@ -25,7 +25,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     with progress_bar(args.runs * len(CASES), "reproduce", not args.no_progress) as bar:
         for case in CASES:
             results.append(run_case(rig_file, case, args.runs, first_seed=args.seed, progress=bar.update,
-                                    keep_example=bool(args.plots)))
+                                    keep_example=bool(args.plots), workers=args.workers, scheduler=args.scheduler))
     if args.plots:
         _reproduce_plots(rig_file, results, Path(args.plots))
     if args.json:
@@ -78,5 +78,9 @@ def add_parser(subparsers: Any) -> None:
     p.add_argument("--json", action="store_true", help="print JSON rows instead of the table")
     p.add_argument("--report", "--plots", dest="plots", metavar="DIR", default=None,
                    help="write PNG figures (Fig. 4 and 5 analogues) to DIR (--plots: the old name)")
+    p.add_argument("--workers", type=cli_types.positive_int, default=1, metavar="N",
+                   help="runs at once on a local Dask cluster of N single-thread processes (default 1: here)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the runs on this Dask cluster (tcp://host:port) instead")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_reproduce)

@@ -143,6 +143,8 @@ class Diagnosis:
         after = _rms(ctx.y_m - self.after_fit.prediction_m, ctx.mask) if self.after_fit else before
         best = rk.best
         top2 = [f.name for f in rk.singles[:2]]
+        final_label = ("+ " + best.name + (" + " + rk.second.name if rk.second else "")) if best else "nominal"
+        final_row = next((r for r in self.table if r["model"] == final_label), self.table[0])
         if best is not None:
             top2 = [best.name, (rk.second.name if rk.second else
                                 next(f.name for f in rk.singles if f.name != best.name))]
@@ -178,6 +180,11 @@ class Diagnosis:
             "noise_std_m": float(np.sqrt(np.mean(ctx.noise_std_m ** 2))),
             "coefficients_ekf": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, ctx.coefficients_ekf))),
             "coefficients_nominal": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, ctx.coefficients))),
+            # the bearing coefficients of the verdict's model (the nominal fit's when the verdict is none)
+            "coefficients_verdict": dict(zip(COEFFICIENT_NAMES_WITH_UNITS,
+                                             map(float, final_row["coefficients"].values()))),
+            "coefficients_verdict_std": dict(zip(COEFFICIENT_NAMES_WITH_UNITS,
+                                                 map(float, final_row["coefficients_std"].values()))),
             "table": self.table,
         }
 

@@ -16,7 +16,8 @@ SOURCES = [*ROOT.joinpath("rotor_estimator").rglob("*.py"), *ROOT.joinpath("msg_
 #: pip distribution -> module it is imported as
 PIP_MODULES = {"numpy": "numpy", "scipy": "scipy", "numba": "numba", "filterpy": "filterpy", "pyyaml": "yaml",
                "rosbags": "rosbags", "mcap": "mcap", "mcap-ros2-support": "mcap_ros2", "tqdm": "tqdm",
-               "matplotlib": "matplotlib", "threadpoolctl": "threadpoolctl", "h5py": "h5py"}
+               "matplotlib": "matplotlib", "threadpoolctl": "threadpoolctl", "h5py": "h5py", "dask": "dask",
+               "distributed": "distributed", "pyarrow": "pyarrow"}
 #: Imports that are optional by design (guarded; the feature says how to install them).
 OPTIONAL = {"ross"}  # diagnosis/ross_cases.py: the ROSS cross-check of `bench diagnosis`
 

@@ -9,7 +9,7 @@ import pytest
 
 SUBPACKAGES = ["rotor_estimator.core", "rotor_estimator.io", "rotor_estimator.virtual_sensing",
                "rotor_estimator.cli", "rotor_estimator.identification", "rotor_estimator.diagnosis",
-               "rotor_estimator.diagnosis.effects"]
+               "rotor_estimator.diagnosis.effects", "rotor_estimator.batch"]
 
 
 @pytest.mark.parametrize("name", SUBPACKAGES)
