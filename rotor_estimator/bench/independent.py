@@ -51,7 +51,7 @@ PLANNED_FORMS = tuple(name for name, f in FORM_BY_NAME.items() if f.family != "h
 MAX_REDRAWS = 4
 
 
-def plan(n_cases: int, seed: int, *, use_ross: bool = True) -> list[tuple[str, dict, int]]:
+def plan(n_cases: int, seed: int, *, use_ross: bool = True, id_prefix: str = "case_") -> list[tuple[str, dict, int]]:
     """(case id, spec, case seed): ~15 % controls (half with an impact), ~10 % pairs, singles over every form."""
     rng = np.random.default_rng(seed)
     n_controls = max(2, round(0.15 * n_cases))
@@ -62,7 +62,7 @@ def plan(n_cases: int, seed: int, *, use_ross: bool = True) -> list[tuple[str, d
     specs += [{"kind": "pair", "families": PAIRS[i % len(PAIRS)]} for i in range(n_pairs)]
     specs += [{"kind": "single", "form": forms[i % len(forms)]} for i in range(max(0, n_cases - len(specs)))]
     order = rng.permutation(len(specs))[:n_cases]
-    return [(f"case_{j:03d}", specs[i], int(seed * 1000 + j)) for j, i in enumerate(order)]
+    return [(f"{id_prefix}{j:03d}", specs[i], int(seed * 1000 + j)) for j, i in enumerate(order)]
 
 
 def _draw_conditions(rng: np.random.Generator, rig_file: RigFile, impact: bool) -> dict:
@@ -272,14 +272,15 @@ def _jsonable(x):
 
 
 def write_independent_set(out_dir: str | Path, n_cases: int = 24, seed: int = 7070, *, use_ross: bool = True,
-                          progress=None) -> dict:
-    """Write an independent blind set (format of :func:`.blind.write_blind_set`); returns the labels."""
+                          progress=None, id_prefix: str = "case_") -> dict:
+    """Write an independent blind set (format of :func:`.blind.write_blind_set`, case ids ``id_prefix`` + number);
+    returns the labels (also in ``labels/labels.json``)."""
     out = Path(out_dir)
     (out / "cases").mkdir(parents=True, exist_ok=True)
     (out / "labels").mkdir(parents=True, exist_ok=True)
     rig_file = load_rig_file()
     labels = {}
-    for case_id, spec, s in plan(n_cases, seed, use_ross=use_ross):
+    for case_id, spec, s in plan(n_cases, seed, use_ross=use_ross, id_prefix=id_prefix):
         c = make_case(case_id, spec, s, rig_file)
         d = out / "cases" / c.case_id
         d.mkdir(parents=True, exist_ok=True)

@@ -160,3 +160,15 @@ def test_cases_and_labels_are_written_apart(tmp_path, monkeypatch):
                     "true_gap", "effect_params"):
             assert key in lab
         assert lab["generator"] == "independent" and len(lab["true_coefficients"]) == 8
+
+
+def test_bench_generate_writes_an_independent_set(tmp_path, monkeypatch, capsys):
+    """`rotor-estimator bench generate --generator independent` writes the set and lists its forms."""
+    from rotor_estimator.cli.main import main
+
+    monkeypatch.setattr(independent, "DURATION_S", 0.1)
+    assert main(["bench", "generate", "--generator", "independent", "--cases", "3", "--seed", "5", "--no-ross",
+                 str(tmp_path)]) == 0
+    labels = json.loads((tmp_path / "labels" / "labels.json").read_text())
+    assert len(labels) == 3 and all(lab["generator"] == "independent" for lab in labels.values())
+    assert "control:" in capsys.readouterr().out
