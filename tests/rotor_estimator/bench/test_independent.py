@@ -92,14 +92,14 @@ def _recomputed_gap(case) -> float:
     return float(np.sqrt(np.mean(d ** 2)) / lab["noise_std_m"])
 
 
-@pytest.mark.parametrize("form", ["control"] + list(independent.PLANNED_FORMS))
-def test_each_form_changes_the_record_by_its_labelled_gap(form, monkeypatch):
-    """Each planned form (0.1 s records to keep it short), rebuilt from its label and written record: the
-    residual against the effect-free true model is the labelled true gap (within 6 %, the noise's own
-    sampling spread included); a control's true gap is 1."""
+@pytest.mark.parametrize("seed,form", list(enumerate(["control"] + list(independent.PLANNED_FORMS), start=4242)))
+def test_each_form_changes_the_record_by_its_labelled_gap(seed, form, monkeypatch):
+    """Each planned form (0.1 s records to keep it short; a seed of its own, so starts and conditions vary),
+    rebuilt from its label and written record: the residual against the effect-free true model is the
+    labelled true gap (within 6 %, the noise's own sampling spread included); a control's true gap is 1."""
     monkeypatch.setattr(independent, "DURATION_S", 0.1)
     spec = {"kind": "control", "impact": True} if form == "control" else {"kind": "single", "form": form}
-    case = independent.make_case("t", spec, 4242)
+    case = independent.make_case("t", spec, seed)
     lab = case.label
     expected = math.sqrt(lab["true_gap"] ** 2 - 1 + (lab["noise_rms_m"] / lab["noise_std_m"]) ** 2)
     assert _recomputed_gap(case) == pytest.approx(expected, rel=0.06)
