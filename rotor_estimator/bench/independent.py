@@ -10,8 +10,10 @@ type and the blind-set file format (:mod:`.blind`, :mod:`.cases`) and ROSS's FE 
 common foundation mass under both housings with probes relative or absolute, whole-sample and fractional
 delays of one channel or one plane, a keyphasor offset with pulse jitter, a single-channel gain or a single
 misoriented probe, 1X-3X runout on some probes, an unbalance at an arbitrary plane, a radial cubic or a
-clearance contact in the bearings, a scaled force channel, and ROSS's FE flexible shaft and separate
-pedestal masses. Records start from rest or at steady state, carry DC gap offsets and gravity sag.
+clearance contact in the bearings, a scaled force channel (defined, not drawn), and ROSS's FE flexible
+shaft, separate pedestal masses and its own coupling-misalignment fault model
+(``ross.faults.MisalignmentFlex``). Records start from rest or at steady state, carry DC gap offsets and
+gravity sag (own rotor).
 
 Strength: each effect's physical parameter is set so that its true gap (see
 :mod:`.independent_effects`; against the generating model, never a fit of the diagnosis) is near a
@@ -41,7 +43,8 @@ DURATION_S = 0.5
 GAP_RANGE = (1.2, 16.0)
 PAIRS = (("misalignment", "timing_skew"), ("probe_runout", "bearing_cubic"), ("residual_unbalance", "pedestal"),
          ("tach_offset", "probe_gain_orientation"))
-ROSS_FORMS = ("shaft_bending:ross_fe_flexible_shaft", "pedestal:ross_fe_separate_pedestals")
+ROSS_FORMS = ("shaft_bending:ross_fe_flexible_shaft", "pedestal:ross_fe_separate_pedestals",
+              "misalignment:ross_flex_coupling_parallel")
 FORM_BY_NAME = {f"{f.family}:{f.form}": f for f in FORMS}
 #: Forms a set draws. ``hammer_force_scale`` is left out: with one blow of 200-600 N in 0.5 s and these
 #: bearings (damping ratio ~0.5), the impact response lasts a few ms, and a 50 % error of the force channel
@@ -209,6 +212,44 @@ def _ross_case(form: str, rng: np.random.Generator, rig_file: RigFile):
         assert best is not None
         gap, rec, rig, d = best
         family, params = "shaft_bending", {"diameter_m": d, "reference": "rigid rotor of the same geometry"}
+    elif form == "misalignment:ross_flex_coupling_parallel":
+        rec0, rig = ross(0.05)
+        k_radial, direction = float(rng.uniform(1e5, 5e5)), float(rng.uniform(0.2, np.pi / 2 - 0.2))
+
+        def coupling(delta_m):
+            def force(rotor, t):
+                """ROSS's own flexible-coupling model (ross.faults), its reaction on the coupling hub at the shaft's
+                end (node 0); ROSS puts the opposite reaction on the element's other node, a couple over 25 mm,
+                which on this rotor is the driver's share: it is left out."""
+                from ross.faults.misalignment import MisalignmentFlex
+
+                fault = MisalignmentFlex(rotor, n=0, mis_type="parallel", mis_distance_x=delta_m * math.cos(direction),
+                                         mis_distance_y=delta_m * math.sin(direction), mis_angle=0.0,
+                                         radial_stiffness=k_radial, bending_stiffness=0.0)
+                f = fault.compute_reaction_force(speed * t)
+                keep = np.zeros(rotor.ndof)
+                keep[fault.dofs[:2]] = 1.0
+                return (f * keep[:, None]).T
+            return force
+
+        def gap_delta(delta_m):
+            rec, _, _ = rc.simulate_ross(0.05, r, speed, impacts, DURATION_S, 0.0, 0,  # type: ignore[arg-type]
+                                         lead_in_s=lead, extra_force=coupling(delta_m))
+            return gap_of(rec.probes_m, rec0.probes_m, rec.time_s(), noise), rec
+
+        delta, want, best_m = 1e-4, math.sqrt(target ** 2 - 1), None
+        for _ in range(4):  # the coupling force is nearly linear in the offset: a few secant steps
+            g, rec = gap_delta(delta)
+            if best_m is None or _miss(g, target) < _miss(best_m[0], target):
+                best_m = (g, rec, delta)
+            if abs(math.log(g / target)) < 0.03 or g <= 1.0:
+                break
+            delta = min(delta * want / math.sqrt(g * g - 1), 1e-3)
+        assert best_m is not None
+        gap, rec, delta = best_m
+        family, params = "misalignment", {"mis_type": "parallel", "mis_distance_m": delta, "direction_rad": direction,
+                                          "radial_stiffness_n_per_m": k_radial, "hub_node": 0, "diameter_m": 0.05,
+                                          "model": "ross.faults.MisalignmentFlex"}
     else:
         rec0, rig = ross(0.05)
         m_p, zeta = float(rng.uniform(2.0, 10.0)), float(rng.uniform(0.02, 0.1))
