@@ -172,3 +172,16 @@ def test_bench_generate_writes_an_independent_set(tmp_path, monkeypatch, capsys)
     labels = json.loads((tmp_path / "labels" / "labels.json").read_text())
     assert len(labels) == 3 and all(lab["generator"] == "independent" for lab in labels.values())
     assert "control:" in capsys.readouterr().out
+
+
+def test_plan_mixes_controls_pairs_and_every_form():
+    """A 40-case plan has ~15 % controls (half with an impact), ~10 % pairs, and singles over every planned
+    own form and every ROSS form; the same seed gives the same plan."""
+    p = independent.plan(40, 3)
+    specs = [s for _, s, _ in p]
+    controls = [s for s in specs if s["kind"] == "control"]
+    assert len(p) == 40 and len(controls) == 6 and sum(s["impact"] for s in controls) == 3
+    assert sum(s["kind"] == "pair" for s in specs) == 4
+    singles = {s["form"] for s in specs if s["kind"] == "single"}
+    assert singles == set(independent.PLANNED_FORMS) | set(independent.ROSS_FORMS)
+    assert independent.plan(40, 3) == p and len({cid for cid, _, _ in p}) == 40
