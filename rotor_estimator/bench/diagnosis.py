@@ -23,6 +23,35 @@ import numpy as np
 
 from rotor_estimator.bench.blind import MIN_GAP, load_recording, write_blind_set
 from rotor_estimator.batch.runner import map_ordered
+from rotor_estimator.core.errors import InputError
+
+#: Which generator(s) a benchmark draws its cases from: the package's own (``effect_sim`` and its ROSS
+#: cases), the independent one (:mod:`.independent`), or both (scored apart).
+GENERATORS = ("own", "independent", "both")
+
+
+def generator_family(label: dict) -> str:
+    """``"independent"`` for a case of :mod:`.independent`, ``"own"`` for the package's own generator."""
+    return "independent" if label.get("generator") == "independent" else "own"
+
+
+def write_sets(out_dir: str | Path, n_cases: int, seed: int, *, generator: str = "own", use_ross: bool = True,
+               progress=None, jobs: int = 1) -> dict:
+    """Write ``n_cases`` per chosen generator into ``out_dir`` (independent case ids ``ind_...`` next to the own
+    ``case_...`` when both); one ``labels/labels.json`` holds them all. Returns the labels."""
+    if generator not in GENERATORS:
+        raise InputError(f"generator: expected one of {', '.join(GENERATORS)}, got {generator!r}")
+    out = Path(out_dir)
+    labels: dict = {}
+    if generator in ("own", "both"):
+        labels.update(write_blind_set(out, n_cases, seed, use_ross=use_ross, progress=progress, jobs=jobs))
+    if generator in ("independent", "both"):
+        from rotor_estimator.bench.independent import write_independent_set
+
+        labels.update(write_independent_set(out, n_cases, seed, use_ross=use_ross, progress=progress,
+                                            id_prefix="ind_" if generator == "both" else "case_"))
+    (out / "labels" / "labels.json").write_text(json.dumps(dict(sorted(labels.items())), indent=1))
+    return labels
 
 
 def diagnose_case(case_dir: str) -> dict:
@@ -82,7 +111,8 @@ def score(results: list[dict], labels: dict) -> dict:
                      "set_verdict": bool(tied), "coefficients_covered": cover, "worst_direct_error": worst_direct,
                      "worst_cross_error": worst_cross,
                      "generator": lab["generator"], "shrink_error": shrink_err, "seconds": r.get("seconds", 0.0),
-                     "pair_separable": separable})
+                     "pair_separable": separable, "true_gap": float(lab.get("true_gap", float("nan"))),
+                     "form": lab.get("form", key)})
     arr = lambda k, sel=None: np.array([x[k] for x in rows if sel is None or sel(x)], dtype=float)  # noqa: E731
     controls = [x for x in rows if x["truth"] == "none"]
     clear = lambda x: x["gap"] >= 1.5 and x["truth"] != "none"  # noqa: E731
@@ -106,6 +136,12 @@ def score(results: list[dict], labels: dict) -> dict:
             "n_coefficients_scored": sum(len(x["coefficients_covered"]) for x in rows),
             "worst_direct_error_median": _median_of([x["worst_direct_error"] for x in rows]),
             "worst_cross_error_median": _median_of([x["worst_cross_error"] for x in rows]),
+            # the independent generator labels the gap of its true model (never a fit of the diagnosis)
+            "n_true_gap_clear": int(sum(1 for x in rows if x["truth"] != "none" and x["true_gap"] >= 1.5)),
+            "top1_true_gap_clear": (float(np.mean([x["top1"] for x in rows
+                                                   if x["truth"] != "none" and x["true_gap"] >= 1.5]))
+                                    if any(x["truth"] != "none" and x["true_gap"] >= 1.5 for x in rows)
+                                    else float("nan")),
             "mean_seconds_per_case": float(arr("seconds").mean()),
             "rows": rows, "confusion": _confusion(rows)}
 
@@ -148,7 +184,21 @@ def _confusion(rows: list[dict]) -> dict:
                        for t in truths]}
 
 
+def score_by_generator(results: list[dict], labels: dict) -> dict[str, dict]:
+    """:func:`score` of each generator's cases apart (keys ``own`` / ``independent``)."""
+    families = sorted({generator_family(labels[r["case"]]) for r in results})
+    return {g: score([r for r in results if generator_family(labels[r["case"]]) == g], labels) for g in families}
+
+
 def format_score(s: dict) -> str:
+    """The score as text: one block per generator when ``s`` carries ``by_generator``."""
+    if s.get("by_generator"):
+        return "\n\n".join(f"== generator: {g} ({sub['cases']} cases) ==\n" + _format_one(sub)
+                            for g, sub in s["by_generator"].items())
+    return _format_one(s)
+
+
+def _format_one(s: dict) -> str:
     cm = s["confusion"]
     short = {v: v[:10] for v in cm["verdicts"]}
     w = max(len(t) for t in cm["truths"]) + 2
@@ -172,6 +222,8 @@ def format_score(s: dict) -> str:
             "within +-1.96 reported std (target 90-98 %)",
             f"worst coefficient error  median {100 * s['worst_direct_error_median']:.1f} % direct, "
             f"{100 * s['worst_cross_error_median']:.1f} % cross-coupled (of the largest true term of each kind)",
+            *([f"top-1 where true gap >= 1.5x {100 * s['top1_true_gap_clear']:.1f} % of {s['n_true_gap_clear']}"]
+              if s.get("n_true_gap_clear") else []),
             f"shrink error median      {100 * s['shrink_error_median']:.1f} %, within 20 %: "
             f"{100 * s['shrink_within_20pct']:.1f} % of detected cases",
             f"mean time per case       {s['mean_seconds_per_case']:.1f} s"]
@@ -179,8 +231,9 @@ def format_score(s: dict) -> str:
 
 
 def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, *, jobs: int = 2,
-        use_ross: bool = True, progress=None) -> dict:
-    """Generate, diagnose (``jobs`` processes), score. Returns the score dict."""
+        use_ross: bool = True, progress=None, generator: str = "own", generate: bool = True) -> dict:
+    """Generate (``generator``: own, independent or both; ``generate=False`` diagnoses the set already in
+    ``out_dir``), diagnose (``jobs`` processes), score each generator apart. Returns the score dict."""
     import tempfile
 
     tmp = None
@@ -189,13 +242,17 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
         out_dir = tmp.name
     out = Path(out_dir)
     t0 = time.time()
-    write_blind_set(out, n_cases, seed, use_ross=use_ross, progress=progress, jobs=jobs)
+    if generate:
+        write_sets(out, n_cases, seed, generator=generator, use_ross=use_ross, progress=progress, jobs=jobs)
+    elif not (out / "cases").is_dir() or not (out / "labels" / "labels.json").is_file():
+        raise InputError(f"{out}: not a blind set (expected cases/ and labels/labels.json)")
     t_gen = time.time() - t0
     case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
     # a local Dask cluster of ``jobs`` single-thread processes (rotor_estimator.batch.runner), as the pool was
     results = map_ordered(diagnose_case, case_dirs, workers=max(1, jobs), inline=False)
     labels = json.loads((out / "labels" / "labels.json").read_text())  # opened only now
     s = score(results, labels)
+    s["by_generator"] = score_by_generator(results, labels)
     s["generation_seconds"] = t_gen
     s["total_seconds"] = time.time() - t0
     (out / "results.json").write_text(json.dumps({"results": results, "score": s}, indent=1, default=str))

@@ -145,8 +145,13 @@ def _steady_unbalance_state(rotor, speed_rad_s: float, base) -> np.ndarray:
 
 
 def simulate_ross(diameter_m: float, r: np.ndarray, speed_rad_s: float, impacts: tuple[Impact, ...], duration_s: float,
-                  noise_std_m: float, seed: int, pedestal=None, lead_in_s: float = 0.25, oversample: int = 2):
-    """Probe record of the ROSS rotor: (recording, rig, realized noise RMS)."""
+                  noise_std_m: float, seed: int, pedestal=None, lead_in_s: float = 0.25, oversample: int = 2,
+                  extra_force=None):
+    """Probe record of the ROSS rotor: (recording, rig, realized noise RMS).
+
+    ``extra_force(rotor, t)``, when given, returns a ``(t.size, rotor.ndof)`` force array added to the
+    unbalance and impacts (``t`` from the start of the lead-in; the shaft angle is ``speed_rad_s * t``),
+    e.g. the reaction force of one of ROSS's own fault models."""
     rotor = _build(diameter_m, r, pedestal)
     rig = rig_from_geometry(diameter_m, speed_rad_s, noise_std_m)
     dt = rig.sample_period_s
@@ -168,6 +173,8 @@ def simulate_ross(diameter_m: float, r: np.ndarray, speed_rad_s: float, impacts:
         shape[k0] = shape[k0 + oversample] = 0.5
         f[:, nd * IMPACT_NODE] += imp.force_x_n * shape
         f[:, nd * IMPACT_NODE + 1] += imp.force_y_n * shape
+    if extra_force is not None:
+        f += extra_force(rotor, t)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         _, yout, _ = rotor.time_response(speed_rad_s, f, t, ic=_steady_unbalance_state(rotor, speed_rad_s, base))

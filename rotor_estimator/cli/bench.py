@@ -42,9 +42,33 @@ def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
     from rotor_estimator.bench.diagnosis import format_score, run
 
     warnings.simplefilter("ignore")
-    s = run(args.cases, args.seed, args.out, jobs=args.jobs, use_ross=not args.no_ross,
-            progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True))
-    print(json.dumps({k: v for k, v in s.items() if k != "rows"}, indent=1) if args.json else format_score(s))
+    s = run(args.cases, args.seed, args.set or args.out, jobs=args.jobs, use_ross=not args.no_ross,
+            progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True), generator=args.generator,
+            generate=args.set is None)
+    if args.json:
+        brief = {k: v for k, v in s.items() if k != "rows"}
+        brief["by_generator"] = {g: {k: v for k, v in sub.items() if k != "rows"}
+                                 for g, sub in s.get("by_generator", {}).items()}
+        print(json.dumps(brief, indent=1))
+    else:
+        print(format_score(s))
+    return 0
+
+
+def cmd_bench_generate(args: argparse.Namespace) -> int:
+    """Write a blind set (cases apart from labels) without diagnosing it."""
+    import warnings
+    from collections import Counter
+
+    from rotor_estimator.bench.diagnosis import write_sets
+
+    warnings.simplefilter("ignore")
+    labels = write_sets(args.out_dir, args.cases, args.seed, generator=args.generator, use_ross=not args.no_ross,
+                        progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True), jobs=args.jobs)
+    forms = Counter(lab.get("form", "+".join(lab["effects"]) or "none") for lab in labels.values())
+    print(f"{len(labels)} cases in {args.out_dir}/cases, labels in {args.out_dir}/labels/labels.json")
+    for form, n in sorted(forms.items()):
+        print(f"  {n:3d}  {form}")
     return 0
 
 
@@ -138,8 +162,22 @@ def add_parser(subparsers: Any) -> None:
     b.add_argument("--out", default=None, help="keep the blind set, labels and results here")
     b.add_argument("--jobs", type=int, default=2, help="cases diagnosed at once, one process each (default 2)")
     b.add_argument("--no-ross", action="store_true", help="leave out the ROSS flexible-shaft cases")
+    b.add_argument("--generator", choices=("own", "independent", "both"), default="own",
+                   help="cases from the package's own generator, the independent one, or both (scored apart)")
+    b.add_argument("--set", type=Path, default=None,
+                   help="diagnose the blind set already in DIR (from `bench generate`) instead of drawing one")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_diagnosis)
+
+    b = bench.add_parser("generate", help="write a blind diagnosis set (cases and labels apart), no diagnosis")
+    b.add_argument("out_dir", type=Path, metavar="OUT_DIR", help="directory for cases/ and labels/ (created)")
+    b.add_argument("--generator", choices=("own", "independent", "both"), default="independent",
+                   help="the package's own generator, the independent one (default), or both")
+    b.add_argument("--cases", type=cli_types.positive_int, default=24, help="cases per generator (default 24)")
+    b.add_argument("--seed", type=cli_types.seed, default=7070)
+    b.add_argument("--jobs", type=int, default=1, help="processes for the own generator (default 1)")
+    b.add_argument("--no-ross", action="store_true", help="leave out the ROSS cases")
+    b.set_defaults(func=cmd_bench_generate)
 
     b = bench.add_parser("identification", help="EKF, UKF, EKF+RTS and batch ML against the CRLB on "
                                                            "the seed cases, coast-downs and the 5-impact test")

@@ -59,3 +59,20 @@ def test_a_tie_scores_as_a_hit_only_with_two_members_holding_the_truth_and_cover
     assert s["n_coefficients_scored"] == 8 and s["coefficient_coverage"] == 7 / 8
     assert abs(s["worst_direct_error_median"] - 3e4 / 6e5) < 1e-12
     assert abs(s["worst_cross_error_median"] - 120.0 / 1200.0) < 1e-12
+
+
+def test_each_generator_is_scored_apart():
+    """Cases of the own and the independent generator are scored in separate blocks: a miss on an
+    independent case lowers only the independent block's top-1, and the text names both generators."""
+    from rotor_estimator.bench.diagnosis import score_by_generator
+
+    labels = {"a": _label(["pedestal"]), "b": {**_label(["pedestal"]), "generator": "independent", "true_gap": 3.0},
+              "c": {**_label([]), "generator": "independent", "true_gap": 1.0}}
+    res = [{"case": k, "best_effect": v, "second_effect": "none", "top_two": [v], "before": 2e-6, "shrink_ratio": 2.0,
+            "seconds": 1.0} for k, v in (("a", "pedestal"), ("b", "probe_runout"), ("c", "none"))]
+    by = score_by_generator(res, labels)
+    assert set(by) == {"own", "independent"}
+    assert by["own"]["top1"] == 1.0 and by["independent"]["top1"] == 0.5
+    assert by["independent"]["top1_true_gap_clear"] == 0.0 and by["independent"]["n_true_gap_clear"] == 1
+    text = format_score({**score(res, labels), "by_generator": by})
+    assert "== generator: independent (2 cases) ==" in text and "== generator: own (1 cases) ==" in text
