@@ -126,9 +126,13 @@ def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int) 
     norm = np.sqrt((a * a).sum(axis=0))
     norm[norm == 0] = 1.0
     bread = np.linalg.pinv((a / norm).T @ (a / norm), rcond=1e-12, hermitian=True) / np.outer(norm, norm)
-    m = int(2 ** np.ceil(np.log2(2 * t_n)))
-    nu = np.fft.fftfreq(m)
     seg = int(min(segment, t_n))
+    # Welch's S is a cosine series of lags under ``seg``, so a DFT of T + seg points sums the quadratic form without
+    # circular wrap-around (a 2T-point one costs three times the memory and time for nothing)
+    from scipy.fft import next_fast_len
+
+    m = int(next_fast_len(t_n + seg, real=True))
+    nu = np.fft.fftfreq(m)
     cross = np.zeros((m, n_ch, n_ch), dtype=complex)
     for i in range(n_ch):
         for j in range(i, n_ch):
@@ -149,7 +153,8 @@ def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int) 
         spec[:, :, k:k + SPECTRUM_BLOCK_COLUMNS] = np.fft.rfft(design[:, :, k:k + SPECTRUM_BLOCK_COLUMNS], n=m, axis=0)
     weight = np.full(half, 2.0)
     weight[0] = 1.0
-    weight[-1] = 1.0  # m is even: the last one-sided line is the Nyquist frequency
+    if m % 2 == 0:
+        weight[-1] = 1.0  # the last one-sided line is the Nyquist frequency
     cross_half = cross[:half] * weight[:, None, None]
     meat = np.zeros((p, p))
     for f0 in range(0, half, SPECTRUM_CHUNK_LINES):  # sum_f A_f^T S_f conj(A_f), as one matrix product per chunk
