@@ -194,3 +194,23 @@ def test_pedestal_forms_are_validated_and_named():
     assert forms == {("separate", "absolute"), ("separate", "relative"), ("common", "absolute"),
                      ("common", "relative")}
     assert "common" in PedestalFlexibility("common").form
+
+
+def test_common_foundation_form_has_the_modes_of_the_independent_generators_foundation():
+    """Agreement with an independent implementation: the pedestal's common-mass form (bearing coordinates, the
+    diagnosis's models.py) has the same 12 eigenvalues, to 1e-6, as the independent benchmark generator's own
+    foundation model (mass-center coordinates, derived apart), at speed with gyroscopics and cross-coupling."""
+    from rotor_estimator.bench.independent_physics import Foundation, RotorGeometry, TrueModel, linear_eigenvalues
+    from rotor_estimator.core.model import rotor_matrices
+    from rotor_estimator.diagnosis import models
+
+    rig = load_rig_file().rig
+    r = rig.true_coefficients.as_array()
+    m_f, k_f, c_f = 3.0, 4e6, 600.0
+    truth = TrueModel(RotorGeometry.from_rig(rig), tuple(r), rig.speed_rad_s,
+                      foundation=Foundation(m_f, k_f, c_f, probes_relative=False))
+    theirs = np.sort_complex(np.asarray(linear_eigenvalues(truth)))
+    ours = np.sort_complex(np.linalg.eigvals(models.pedestal_state_matrix(
+        rotor_matrices(rig), r, rig.speed_rad_s, m_f, k_f, c_f, models.HOUSING_MAPS["common"])))
+    assert theirs.shape == ours.shape == (12,)
+    assert np.max(np.abs(theirs - ours) / np.abs(theirs)) < 1e-6
