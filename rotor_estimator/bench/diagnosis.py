@@ -231,9 +231,11 @@ def _format_one(s: dict) -> str:
 
 
 def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, *, jobs: int = 2,
-        use_ross: bool = True, progress=None, generator: str = "own", generate: bool = True) -> dict:
+        use_ross: bool = True, progress=None, generator: str = "own", generate: bool = True,
+        on_diagnosed=None) -> dict:
     """Generate (``generator``: own, independent or both; ``generate=False`` diagnoses the set already in
-    ``out_dir``), diagnose (``jobs`` processes), score each generator apart. Returns the score dict."""
+    ``out_dir``), diagnose (``jobs`` processes; ``on_diagnosed(done, total)`` after each case), score each
+    generator apart. Returns the score dict."""
     import tempfile
 
     tmp = None
@@ -249,7 +251,14 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
     t_gen = time.time() - t0
     case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
     # a local Dask cluster of ``jobs`` single-thread processes (rotor_estimator.batch.runner), as the pool was
-    results = map_ordered(diagnose_case, case_dirs, workers=max(1, jobs), inline=False)
+    done = [0]
+
+    def _tick(_n: int) -> None:
+        done[0] += 1
+        if on_diagnosed:
+            on_diagnosed(done[0], len(case_dirs))
+
+    results = map_ordered(diagnose_case, case_dirs, workers=max(1, jobs), inline=False, progress=_tick)
     labels = json.loads((out / "labels" / "labels.json").read_text())  # opened only now
     s = score(results, labels)
     s["by_generator"] = score_by_generator(results, labels)

@@ -44,7 +44,8 @@ def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
     warnings.simplefilter("ignore")
     s = run(args.cases, args.seed, args.set or args.out, jobs=args.jobs, use_ross=not args.no_ross,
             progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True), generator=args.generator,
-            generate=args.set is None)
+            generate=args.set is None,
+            on_diagnosed=lambda k, n: print(f"diagnosed {k} / {n}", file=sys.stderr, flush=True))
     if args.json:
         brief = {k: v for k, v in s.items() if k != "rows"}
         brief["by_generator"] = {g: {k: v for k, v in sub.items() if k != "rows"}
