@@ -424,6 +424,23 @@ def _make_ross_case(args) -> BlindCase:
     return rc.make_case(cid, names, s, **kw)
 
 
+def store_case(out: Path, case: BlindCase, labels: dict, progress=None) -> None:
+    """Write one case of a blind set (``cases/<id>/recording.npz`` and ``rig.yaml``), record its label in
+    ``labels`` and report its id to ``progress``: the layout every generator's set shares."""
+    d = out / "cases" / case.case_id
+    d.mkdir(parents=True, exist_ok=True)
+    save_recording(d / "recording.npz", case.recording)
+    (d / "rig.yaml").write_text(rig_file_yaml(case.rig_file))
+    labels[case.case_id] = case.label
+    if progress:
+        progress(case.case_id)
+
+
+def write_labels(out: Path, labels: dict) -> None:
+    """The set's answer key, ``labels/labels.json`` (sorted by case id)."""
+    (out / "labels" / "labels.json").write_text(json.dumps(dict(sorted(labels.items())), indent=1))
+
+
 def write_blind_set(out_dir: str | Path, n_cases: int = 40, seed: int = 2024, *, use_ross: bool = True,
                     progress=None, jobs: int = 1) -> dict:
     """Generate a blind set on disk (``jobs`` processes); returns the labels (also in ``labels/labels.json``)."""
@@ -443,13 +460,7 @@ def write_blind_set(out_dir: str | Path, n_cases: int = 40, seed: int = 2024, *,
               for i, (names, s, kw) in enumerate(ross_cases)]
 
     def _store(c: BlindCase) -> None:
-        d = out / "cases" / c.case_id
-        d.mkdir(parents=True, exist_ok=True)
-        save_recording(d / "recording.npz", c.recording)
-        (d / "rig.yaml").write_text(rig_file_yaml(c.rig_file))
-        labels[c.case_id] = c.label
-        if progress:
-            progress(c.case_id)
+        store_case(out, c, labels, progress)
 
     if jobs > 1:  # a local Dask cluster of single-thread processes (rotor_estimator.batch.runner)
         import functools
@@ -461,5 +472,5 @@ def write_blind_set(out_dir: str | Path, n_cases: int = 40, seed: int = 2024, *,
     else:
         for fn, a in tasks:
             _store(fn(a))
-    (out / "labels" / "labels.json").write_text(json.dumps(dict(sorted(labels.items())), indent=1))
+    write_labels(out, labels)
     return labels

@@ -22,14 +22,13 @@ gap reached.
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from rotor_estimator.bench.blind import rig_file_yaml, save_recording
+from rotor_estimator.bench.blind import store_case, write_labels
 from rotor_estimator.bench.cases import BlindCase
 from rotor_estimator.bench.independent_effects import (FORMS, WARMUP_S, Form, Measurement, calibrate, compose,
                                                        gap_of, simulate_record, true_gap)
@@ -322,13 +321,6 @@ def write_independent_set(out_dir: str | Path, n_cases: int = 24, seed: int = 70
     rig_file = load_rig_file()
     labels = {}
     for case_id, spec, s in plan(n_cases, seed, use_ross=use_ross, id_prefix=id_prefix):
-        c = make_case(case_id, spec, s, rig_file)
-        d = out / "cases" / c.case_id
-        d.mkdir(parents=True, exist_ok=True)
-        save_recording(d / "recording.npz", c.recording)
-        (d / "rig.yaml").write_text(rig_file_yaml(c.rig_file))
-        labels[c.case_id] = c.label
-        if progress:
-            progress(c.case_id)
-    (out / "labels" / "labels.json").write_text(json.dumps(dict(sorted(labels.items())), indent=1))
+        store_case(out, make_case(case_id, spec, s, rig_file), labels, progress)
+    write_labels(out, labels)
     return labels
