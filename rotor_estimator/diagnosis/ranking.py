@@ -29,7 +29,7 @@ from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, FitContext
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.fitting import (LinearSolution, Projector, bic, coefficients_after, correlation_segment,
-                                              spectral_covariance, held_out_rms, solve_linear)
+                                              spectral_covariance, held_out_rms, residual_after_fit, solve_linear)
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
 SIGNIFICANCE_DELTA_BIC = 30.0
@@ -372,8 +372,7 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
         if x_cols.shape[2]:
             xc = x_cols[rows]
             xc = (xc - xc.mean(axis=0)).reshape(-1, x_cols.shape[2])
-            coef, *_ = np.linalg.lstsq(xc, b_vec, rcond=None)
-            b_vec = b_vec - xc @ coef
+            b_vec = residual_after_fit(xc, b_vec)
         return b_vec * RESIDUAL_SCALE
 
     scale = float(np.sqrt(np.mean(ctx.y_m[rows] ** 2))) + 1e-12

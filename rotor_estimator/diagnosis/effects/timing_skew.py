@@ -12,12 +12,15 @@ from rotor_estimator.diagnosis.effects.base import CHANNELS, UNIT_SKEW_S, Effect
 
 
 def delayed(y_m: np.ndarray, v_m_s: np.ndarray, delay_s: float, period_s: float) -> np.ndarray:
-    """``y(t - delay)`` of a sampled signal by cubic Hermite interpolation on samples and derivatives (N,)."""
-    n = y_m.size
+    """``y(t - delay)`` of a sampled signal by cubic Hermite interpolation on samples and derivatives.
+
+    ``y_m`` and ``v_m_s`` are (N,) or (N, K): K signals delayed alike, along the first axis."""
+    n = y_m.shape[0]
     shift = delay_s / period_s
     k0 = np.arange(n) - int(np.ceil(shift))
     u = (np.arange(n) - shift) - k0
     k0 = np.clip(k0, 0, n - 2)
+    u = u.reshape((n,) + (1,) * (y_m.ndim - 1))
     p0, p1, m0, m1 = y_m[k0], y_m[k0 + 1], v_m_s[k0] * period_s, v_m_s[k0 + 1] * period_s
     u2, u3 = u * u, u * u * u
     return ((2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1)
@@ -99,7 +102,6 @@ class TimingSkew(Effect):
         for c in range(4):
             if nl[c] == 0.0:
                 continue
-            for k in range(flat.shape[2]):
-                sig = flat[:, c, k].copy()
-                flat[:, c, k] = delayed(sig, np.gradient(sig, ctx.period_s), nl[c] * UNIT_SKEW_S, ctx.period_s)
+            sig = flat[:, c, :].copy()  # every column of the channel at once
+            flat[:, c, :] = delayed(sig, np.gradient(sig, ctx.period_s, axis=0), nl[c] * UNIT_SKEW_S, ctx.period_s)
         return flat.reshape(out.shape)

@@ -193,6 +193,11 @@ def test_exact_delay_matches_a_shifted_sine():
         y = delayed(np.sin(w * t), w * np.cos(w * t), tau, h)
         sel = t > tau + h
         assert np.max(np.abs(y[sel] - np.sin(w * (t[sel] - tau)))) < 2e-4
+    # several signals at once (the columns of a pair's partner) are each delayed alike, bit for bit
+    phases = np.array([0.0, 0.7, 2.1])
+    ys, vs = np.sin(w * t[:, None] + phases), w * np.cos(w * t[:, None] + phases)
+    together = delayed(ys, vs, 37e-6, h)
+    assert np.array_equal(together, np.column_stack([delayed(ys[:, k], vs[:, k], 37e-6, h) for k in range(3)]))
 
 
 def test_data_accounting_counts_each_left_out_sample_and_warns_without_an_impact():

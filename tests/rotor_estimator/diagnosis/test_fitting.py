@@ -1,12 +1,13 @@
 # Copyright 2026 rotor_estimator developers
 # SPDX-License-Identifier: Apache-2.0
-"""The diagnosis's parameter covariance (sandwich with a Welch residual spectrum)."""
+"""The diagnosis's least-squares kernels: the projection of the joint refits and the parameter covariance
+(sandwich with a Welch residual spectrum)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from rotor_estimator.diagnosis.fitting import spectral_covariance
+from rotor_estimator.diagnosis.fitting import residual_after_fit, spectral_covariance
 
 
 def _design(t_n: int = 3000, period: float = 60.0) -> np.ndarray:
@@ -59,3 +60,21 @@ def test_coverage_of_the_95_percent_interval_is_calibrated(kind):
         hits.append(np.abs(theta - truth) <= 1.96 * std)
     coverage = np.mean(hits)
     assert 0.90 <= coverage <= 0.98, coverage
+
+
+@pytest.mark.parametrize("duplicate", [False, True])
+def test_projection_residual_equals_the_svd_least_squares_residual_and_is_orthogonal_to_the_columns(duplicate):
+    """The normal-equation projection of the joint refits leaves the same residual as an SVD ``lstsq`` (to 1e-9
+    of the data), orthogonal to every column, on columns of scales 1e-9..1e3 and with an exactly repeated
+    column (rank deficiency: the repeat is dropped, the residual unchanged)."""
+    rng = np.random.default_rng(5)
+    x = rng.standard_normal((4000, 12)) * np.logspace(-9, 3, 12)
+    if duplicate:
+        x = np.column_stack([x, 2.0 * x[:, 3]])
+    b = rng.standard_normal(4000) + x[:, 6:].sum(axis=1)
+    coef, *_ = np.linalg.lstsq(x, b, rcond=None)
+    reference = b - x @ coef
+    got = residual_after_fit(x, b)
+    assert np.max(np.abs(got - reference)) < 1e-9 * np.max(np.abs(b))
+    unit = x / np.linalg.norm(x, axis=0)
+    assert np.max(np.abs(unit.T @ got)) < 1e-8 * np.linalg.norm(b)
