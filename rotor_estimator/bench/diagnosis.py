@@ -3,7 +3,9 @@
 """Blind benchmark of the diagnosis: generate a fresh withheld-effect set, diagnose, then score.
 
 The diagnosis step reads only ``cases/<id>/recording.npz`` and ``rig.yaml``; the labels
-(``labels/labels.json``) are opened after every case has been diagnosed.
+(``labels/labels.json``) are opened after every case has been diagnosed. Each case's result is kept in
+``results/<id>.json`` as soon as it is done, so an interrupted run resumes where it stopped, and
+``score_only`` scores the cases diagnosed so far (the score says how many of the set they are).
 
 Scores: confusion matrix (truth rows, verdict columns), top-1 and top-2 accuracy (a pair
 case counts top-1 when the verdict is one of its effects and top-2 when both are in the
@@ -206,7 +208,9 @@ def _format_one(s: dict) -> str:
            " " * w + " ".join(f"{short[v]:>10s}" for v in cm["verdicts"])]
     for t, row in zip(cm["truths"], cm["counts"]):
         out.append(f"{t:<{w}s}" + " ".join(f"{c:>10d}" for c in row))
-    out += ["", f"cases {s['cases']} (controls {s['controls']}, clear gap >= 1.5x: {s['n_clear_gap']}, "
+    partial = [f"PARTIAL: {s['cases']} of the set's {s['cases_in_set']} cases diagnosed so far"] \
+        if s.get("cases_in_set", s["cases"]) > s["cases"] else []
+    out += ["", *partial, f"cases {s['cases']} (controls {s['controls']}, clear gap >= 1.5x: {s['n_clear_gap']}, "
                 f"near limit 1.2-2x: {s['n_near_limit']}, below 1.2x: {s['n_below_1p2']})",
             f"top-1 accuracy           {100 * s['top1']:.1f} %",
             f"top-2 accuracy           {100 * s['top2']:.1f} %",
@@ -230,12 +234,40 @@ def _format_one(s: dict) -> str:
     return "\n".join(out)
 
 
+def diagnose_and_keep(case_dir: str, results_dir: str) -> dict:
+    """:func:`diagnose_case`, its result also written to ``results_dir/<case>.json`` (atomically: a run
+    stopped mid-write leaves no half file, and the case is diagnosed again on resume)."""
+    import os
+
+    r = diagnose_case(case_dir)
+    target = Path(results_dir) / f"{Path(case_dir).name}.json"
+    tmp = target.with_suffix(f".json.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(r, indent=1, default=str))
+    os.replace(tmp, target)
+    return r
+
+
+def kept_results(results_dir: Path, case_dirs: list[str]) -> dict[str, dict]:
+    """The results already in ``results_dir`` of the given cases, by case id (unreadable files are redone)."""
+    kept = {}
+    for d in case_dirs:
+        f = results_dir / f"{Path(d).name}.json"
+        if f.is_file():
+            try:
+                kept[Path(d).name] = json.loads(f.read_text())
+            except (OSError, ValueError):
+                continue
+    return kept
+
+
 def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, *, jobs: int = 2,
         use_ross: bool = True, progress=None, generator: str = "own", generate: bool = True,
-        on_diagnosed=None) -> dict:
+        on_diagnosed=None, score_only: bool = False) -> dict:
     """Generate (``generator``: own, independent or both; ``generate=False`` diagnoses the set already in
-    ``out_dir``), diagnose (``jobs`` processes; ``on_diagnosed(done, total)`` after each case), score each
-    generator apart. Returns the score dict."""
+    ``out_dir``, skipping the cases with a kept result), diagnose (``jobs`` processes; ``on_diagnosed(done,
+    total)`` after each case), score each generator apart. ``score_only``: diagnose nothing, score the kept
+    results. Returns the score dict (``cases_in_set``: the set's size, ``cases`` those scored)."""
+    import functools
     import tempfile
 
     tmp = None
@@ -250,18 +282,30 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
         raise InputError(f"{out}: not a blind set (expected cases/ and labels/labels.json)")
     t_gen = time.time() - t0
     case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
-    # a local Dask cluster of ``jobs`` single-thread processes (rotor_estimator.batch.runner), as the pool was
-    done = [0]
+    results_dir = out / "results"
+    results_dir.mkdir(exist_ok=True)
+    kept = kept_results(results_dir, case_dirs)
+    pending = [] if score_only else [d for d in case_dirs if Path(d).name not in kept]
+    done = [len(kept)]
 
     def _tick(_n: int) -> None:
         done[0] += 1
         if on_diagnosed:
             on_diagnosed(done[0], len(case_dirs))
 
-    results = map_ordered(diagnose_case, case_dirs, workers=max(1, jobs), inline=False, progress=_tick)
+    # a local Dask cluster of ``jobs`` single-thread processes (rotor_estimator.batch.runner)
+    fresh = map_ordered(functools.partial(diagnose_and_keep, results_dir=str(results_dir)), pending,
+                        workers=max(1, jobs), inline=False, progress=_tick) if pending else []
+    by_case = {**kept, **{r["case"]: r for r in fresh}}
+    results = [by_case[Path(d).name] for d in case_dirs if Path(d).name in by_case]
+    if not results:
+        raise InputError(f"{out}: no case diagnosed yet (results/ is empty)")
     labels = json.loads((out / "labels" / "labels.json").read_text())  # opened only now
     s = score(results, labels)
+    s["cases_in_set"] = len(case_dirs)
     s["by_generator"] = score_by_generator(results, labels)
+    for g, sub in s["by_generator"].items():
+        sub["cases_in_set"] = sum(generator_family(labels[Path(d).name]) == g for d in case_dirs)
     s["generation_seconds"] = t_gen
     s["total_seconds"] = time.time() - t0
     (out / "results.json").write_text(json.dumps({"results": results, "score": s}, indent=1, default=str))

@@ -42,9 +42,13 @@ def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
     from rotor_estimator.bench.diagnosis import format_score, run
 
     warnings.simplefilter("ignore")
+    if args.score_only and args.set is None:
+        from rotor_estimator.core.errors import InputError
+
+        raise InputError("--score-only scores a set already diagnosed in part: give it with --set DIR")
     s = run(args.cases, args.seed, args.set or args.out, jobs=args.jobs, use_ross=not args.no_ross,
             progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True), generator=args.generator,
-            generate=args.set is None,
+            generate=args.set is None, score_only=args.score_only,
             on_diagnosed=lambda k, n: print(f"diagnosed {k} / {n}", file=sys.stderr, flush=True))
     if args.json:
         brief = {k: v for k, v in s.items() if k != "rows"}
@@ -167,6 +171,9 @@ def add_parser(subparsers: Any) -> None:
                    help="cases from the package's own generator, the independent one, or both (scored apart)")
     b.add_argument("--set", type=Path, default=None,
                    help="diagnose the blind set already in DIR (from `bench generate`) instead of drawing one")
+    b.add_argument("--score-only", action="store_true",
+                   help="with --set: score the cases diagnosed so far (results/ of the set), diagnose none; a "
+                        "rerun without it resumes the others")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_diagnosis)
 
