@@ -319,7 +319,7 @@ def write_independent_set(out_dir: str | Path, n_cases: int = 24, seed: int = 70
     (out / "cases").mkdir(parents=True, exist_ok=True)
     (out / "labels").mkdir(parents=True, exist_ok=True)
     rig_file = load_rig_file()
-    labels = {}
+    labels: dict = {}
     for case_id, spec, s in plan(n_cases, seed, use_ross=use_ross, id_prefix=id_prefix):
         store_case(out, make_case(case_id, spec, s, rig_file), labels, progress)
     write_labels(out, labels)
