@@ -29,7 +29,7 @@ UNEXPLAINED_RATIO = 1.2
 
 # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance; 3: data;
 # 4: verdict_set, tie, unexplained, provenance, finding, the table's coefficients_std
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 NO_IMPACT_WARNING = ("no impact in the record: the bearing coefficients are then fitted to the synchronous "
                      "response alone and absorb most effects (unbalance, keyphasor offset, runout, probe gain, "
@@ -66,6 +66,17 @@ class Diagnosis:
         if rk.best is None:
             return []
         return [rk.best.name] + ([rk.second.name] if rk.second else [f.name for f in rk.tied])
+
+    def ranking_pairs(self, limit: int = 5) -> list[dict]:
+        """The best ``limit`` pairs, their evidence on the singles' scale (``delta_bic`` against the nominal
+        model) and over the top single (``delta_bic_over_top_single``: the pair needs the significance
+        threshold there to be the verdict)."""
+        rk = self.ranking
+        own = {f.name: f.n_params for f in rk.singles}
+        return [{"effects": [p.base[0], p.name], "delta_bic": round(rk.nominal_bic - p.bic, 2),
+                 "delta_bic_over_top_single": round(p.delta_bic, 2),
+                 "n_params": p.n_params + own.get(p.base[0], 0), "held_out_rms_m": p.held_out_rms_m,
+                 "residual_rms_m": _total(p.residual_rms_m)} for p in rk.pairs[:limit]]
 
     def tie(self) -> dict | None:
         """``None`` when the data decide; else the tied effects, their evidence margin and the measurements
@@ -158,6 +169,7 @@ class Diagnosis:
             "ranking": [{"effect": f.name, "delta_bic": round(f.delta_bic, 2), "n_params": f.n_params,
                          "held_out_rms_m": f.held_out_rms_m, "residual_rms_m": _total(f.residual_rms_m)}
                         for f in rk.singles],
+            "ranking_pairs": self.ranking_pairs(),
             "decision_rule": {"min_delta_bic": SIGNIFICANCE_DELTA_BIC,
                               "held_out_no_worse_than_nominal": True,
                               "held_out_tolerance": HELD_OUT_TOLERANCE,

@@ -27,30 +27,56 @@ def _plt():
     return plt
 
 
-def plot_spectra(d: Diagnosis, path: Path) -> None:
-    plt = _plt()
+#: Orders marked on the residual spectra (1X is the shaft speed).
+MARKED_ORDERS = (1, 2, 3, 4)
+
+
+def residual_spectra(d: Diagnosis) -> dict:
+    """Welch amplitude spectral density (m/sqrt(Hz), one-sided) of the residual before and after the verdict, per
+    channel, with the white-noise floor each channel's noise std implies (``sigma sqrt(2 / fs)``) and the
+    order frequencies: what :func:`plot_spectra` draws."""
+    from scipy.signal import welch
+
     ctx = d.ctx
     fs = ctx.sample_rate_hz
+    models = {"nominal": ctx.y_m - d.nominal_prediction_m}
+    if d.after_fit is not None:
+        models["+ " + " + ".join(d.verdict_set)] = ctx.y_m - d.after_fit.prediction_m
+    n = int(ctx.mask.sum())
+    seg = int(min(n, max(256, 8 * round(2 * np.pi / ctx.mean_speed_rad_s * fs))))  # >= 8 revolutions a segment
+    out: dict = {"asd_m_per_sqrt_hz": {}, "noise_floor_m_per_sqrt_hz": ctx.noise_std_m * np.sqrt(2.0 / fs),
+                 "order_hz": {f"{k}X": k * ctx.mean_speed_rad_s / (2 * np.pi) for k in MARKED_ORDERS}}
+    for label, e in models.items():
+        f, psd = welch(e[ctx.mask], fs=fs, nperseg=seg, axis=0, detrend="constant")
+        out["frequency_hz"] = f
+        out["asd_m_per_sqrt_hz"][label] = np.sqrt(psd)
+    return out
+
+
+def plot_spectra(d: Diagnosis, path: Path) -> None:
+    """Residual spectra (Welch) before / after, the noise floor, and the 1X-4X order markers."""
+    plt = _plt()
+    spec = residual_spectra(d)
+    f = spec["frequency_hz"]
     fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
-    before = (ctx.y_m - d.nominal_prediction_m)[ctx.mask]
-    after = (ctx.y_m - d.after_fit.prediction_m)[ctx.mask] if d.after_fit else None
-    n = before.shape[0]
-    f = np.fft.rfftfreq(n, 1 / fs)
-    w = np.hanning(n)[:, None]
+    f_max = min(f[-1], (MARKED_ORDERS[-1] + 2) * spec["order_hz"]["1X"])
     for c, ax in enumerate(axes.ravel()):
-        for e, lab in ((before, "nominal"), (after, f"+ {d.best_effect}")):
-            if e is None:
-                continue
-            spec = np.abs(np.fft.rfft((e - e.mean(axis=0)) * w, axis=0))[:, c] * 2 / w.sum()
-            ax.semilogy(f, spec + 1e-15, lw=0.7, label=lab)
-        ax.set_title(CHANNELS[c])
-        ax.set_xlim(0, min(fs / 2, 12 * ctx.mean_speed_rad_s / (2 * np.pi)))
+        for label, asd in spec["asd_m_per_sqrt_hz"].items():
+            ax.semilogy(f, asd[:, c] + 1e-18, lw=0.8, label=label)
+        ax.axhline(spec["noise_floor_m_per_sqrt_hz"][c], color="k", ls=":", lw=0.8, label="noise floor")
+        for name, fo in spec["order_hz"].items():
+            if fo < f_max:
+                ax.axvline(fo, color="tab:gray", lw=0.5, alpha=0.6)
+                ax.text(fo, 1.0, name, transform=ax.get_xaxis_transform(), ha="center", va="bottom", fontsize=7)
+        ax.set_title(CHANNELS[c], pad=12)
+        ax.set_xlim(0, f_max)
         ax.grid(True, alpha=0.3)
     axes[1, 0].set_xlabel("frequency (Hz)")
     axes[1, 1].set_xlabel("frequency (Hz)")
-    axes[0, 0].set_ylabel("residual amplitude (m)")
-    axes[0, 0].legend()
-    fig.suptitle("Residual spectra before / after the winning effect")
+    axes[0, 0].set_ylabel("residual ASD (m/sqrt(Hz))")
+    axes[1, 0].set_ylabel("residual ASD (m/sqrt(Hz))")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("Residual spectra (Welch) before / after the verdict, with the noise floor and shaft orders")
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
     plt.close(fig)
@@ -81,17 +107,39 @@ def plot_orbits(d: Diagnosis, path: Path) -> None:
     plt.close(fig)
 
 
+#: Pairs shown in the ranking plot (best first).
+PLOTTED_PAIRS = 3
+
+
+def ranking_bars(d: Diagnosis) -> list[tuple[str, float, str]]:
+    """``(label, delta BIC against the nominal, role)`` of every single and the best pairs, best first; role is
+    ``verdict``, ``tied``, ``pair`` or ``other``. Negative evidence is kept as it is (an effect that fits
+    worse than its parameter cost), not clipped."""
+    verdict = set(d.verdict_set)
+    tied = {f.name for f in d.ranking.tied}
+    bars = []
+    for f in d.ranking.singles:
+        role = "tied" if f.name in tied else ("verdict" if f.name in verdict and len(verdict) == 1 else "other")
+        bars.append((f.name, float(f.delta_bic), role))
+    for p in d.ranking_pairs(PLOTTED_PAIRS):
+        role = "verdict" if set(p["effects"]) == verdict else "pair"
+        bars.append((" + ".join(p["effects"]), float(p["delta_bic"]), role))
+    return sorted(bars, key=lambda b: -b[1])
+
+
 def plot_ranking(d: Diagnosis, path: Path) -> None:
+    """Signed evidence of every candidate on a symmetric-log axis (negative evidence to the left of zero)."""
     plt = _plt()
-    fits = d.ranking.singles
-    names = [f.name for f in fits][::-1]
-    vals = [max(f.delta_bic, 0.1) for f in fits][::-1]
-    fig, ax = plt.subplots(figsize=(8, 4))
-    ax.barh(names, vals, color=["tab:red" if n == d.best_effect else "tab:gray" for n in names])
-    ax.axvline(d.summary()["decision_rule"]["min_delta_bic"], color="k", ls="--", lw=0.8, label="significance")
-    ax.set_xscale("log")
-    ax.set_xlabel("evidence: BIC(nominal) - BIC(nominal + effect)")
-    ax.legend()
+    bars = ranking_bars(d)[::-1]
+    colors = {"verdict": "tab:red", "tied": "tab:orange", "pair": "tab:blue", "other": "tab:gray"}
+    fig, ax = plt.subplots(figsize=(8, 0.3 * len(bars) + 1.5))
+    ax.barh([b[0] for b in bars], [b[1] for b in bars], color=[colors[b[2]] for b in bars])
+    threshold = d.summary()["decision_rule"]["min_delta_bic"]
+    ax.axvline(threshold, color="k", ls="--", lw=0.8, label=f"significance ({threshold:g})")
+    ax.axvline(0.0, color="k", lw=0.6)
+    ax.set_xscale("symlog", linthresh=10.0)
+    ax.set_xlabel("evidence: BIC(nominal) - BIC(model)   (red: verdict, orange: tied, blue: pairs)")
+    ax.legend(fontsize=8)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
     plt.close(fig)
@@ -168,6 +216,14 @@ def markdown(d: Diagnosis, summary: dict) -> str:
     for r in summary["ranking"]:
         lines.append(f"| {r['effect']} | {r['delta_bic']:.1f} | {r['n_params']} | {_fmt_um(r['held_out_rms_m'])} | "
                      f"{_fmt_um(r['residual_rms_m'])} |")
+    if summary.get("ranking_pairs"):
+        lines += ["", "Best pairs (delta BIC against the nominal model, as the singles; a pair is the verdict only "
+                      f"when it beats the top single by {summary['decision_rule']['min_delta_bic']:g} too):", "",
+                  "| pair | delta BIC | over the top single | params | held-out RMS (um) | residual RMS (um) |",
+                  "|---|---|---|---|---|---|"]
+        for r in summary["ranking_pairs"]:
+            lines.append(f"| {' + '.join(r['effects'])} | {r['delta_bic']:.1f} | {r['delta_bic_over_top_single']:.1f} "
+                         f"| {r['n_params']} | {_fmt_um(r['held_out_rms_m'])} | {_fmt_um(r['residual_rms_m'])} |")
     lines.append("")
     lines.append(f"Nominal held-out RMS {_fmt_um(summary['decision_rule']['nominal_held_out_rms_m'])} um; an effect "
                  f"counts when delta BIC >= {summary['decision_rule']['min_delta_bic']} and it predicts the held-out "

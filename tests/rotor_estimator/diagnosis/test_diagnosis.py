@@ -164,6 +164,12 @@ def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
     assert abs(prov["mean_speed_rpm"] - rig.speed_rad_s * 30 / math.pi) < 1.0 and prov["impacts"] == 2
     assert "`probe_runout`" in s["finding"] and "+-" in s["finding"]
     assert s["finding"] in (tmp_path / "rep" / "report.md").read_text()
+    # pairs are ranked on the singles' scale: a pair's evidence against the nominal is the top single's plus its
+    # own over the top single
+    assert s["ranking_pairs"], "a runout case is tried in pairs"
+    for r in s["ranking_pairs"]:
+        assert r["delta_bic"] == pytest.approx(s["ranking"][0]["delta_bic"] + r["delta_bic_over_top_single"], abs=0.05)
+    assert "Best pairs" in (tmp_path / "rep" / "report.md").read_text()
 
 
 def test_core_diagnosis_imports_no_ros():
