@@ -37,6 +37,12 @@ def generator_family(label: dict) -> str:
     return "independent" if label.get("generator") == "independent" else "own"
 
 
+def from_ross(label: dict) -> bool:
+    """The case's truth was simulated by ROSS: the own generator's ROSS cases and the independent generator's
+    ROSS forms (``..:ross_..`` in its form)."""
+    return label.get("generator") == "ross" or ":ross_" in label.get("form", "")
+
+
 def write_sets(out_dir: str | Path, n_cases: int, seed: int, *, generator: str = "own", use_ross: bool = True,
                progress=None, jobs: int = 1) -> dict:
     """Write ``n_cases`` per chosen generator into ``out_dir`` (independent case ids ``ind_...`` next to the own
@@ -112,7 +118,7 @@ def score(results: list[dict], labels: dict) -> dict:
         rows.append({"case": r["case"], "truth": key, "verdict": best, "top1": t1, "top2": t2, "gap": gap,
                      "set_verdict": bool(tied), "coefficients_covered": cover, "worst_direct_error": worst_direct,
                      "worst_cross_error": worst_cross,
-                     "generator": lab["generator"], "shrink_error": shrink_err, "seconds": r.get("seconds", 0.0),
+                     "generator": lab["generator"], "ross": from_ross(lab), "shrink_error": shrink_err, "seconds": r.get("seconds", 0.0),
                      "pair_separable": separable, "true_gap": float(lab.get("true_gap", float("nan"))),
                      "form": lab.get("form", key)})
     arr = lambda k, sel=None: np.array([x[k] for x in rows if sel is None or sel(x)], dtype=float)  # noqa: E731
@@ -132,7 +138,7 @@ def score(results: list[dict], labels: dict) -> dict:
             "shrink_within_20pct": float(np.mean(shrink <= 0.2)) if shrink.size else float("nan"),
             "pairs_both_in_top2": [x["top2"] for x in rows if "+" in x["truth"]],
             "separable_pairs_both_in_top2": [x["top2"] for x in rows if x["pair_separable"]],
-            "ross_top1": [x["top1"] for x in rows if x["generator"] == "ross"],
+            "ross_top1": [x["top1"] for x in rows if x["ross"]],
             "set_verdicts": int(sum(x["set_verdict"] for x in rows)),
             "coefficient_coverage": _mean_of([c for x in rows for c in x["coefficients_covered"]]),
             "n_coefficients_scored": sum(len(x["coefficients_covered"]) for x in rows),

@@ -76,6 +76,11 @@ def test_each_generator_is_scored_apart():
     assert by["independent"]["top1_true_gap_clear"] == 0.0 and by["independent"]["n_true_gap_clear"] == 1
     text = format_score({**score(res, labels), "by_generator": by})
     assert "== generator: independent (2 cases) ==" in text and "== generator: own (1 cases) ==" in text
+    # a ROSS-simulated truth counts as a ROSS case in either generator (own: generator "ross"; independent:
+    # a form ``..:ross_..``)
+    labels["b"]["form"] = "shaft_bending:ross_fe_flexible_shaft"
+    labels["a"]["generator"] = "ross"
+    assert score(res, labels)["ross_top1"] == [True, False]
 
 
 def test_score_only_scores_the_kept_results_and_says_the_run_is_partial(tmp_path):
