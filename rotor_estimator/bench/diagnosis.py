@@ -118,7 +118,8 @@ def score(results: list[dict], labels: dict) -> dict:
         rows.append({"case": r["case"], "truth": key, "verdict": best, "top1": t1, "top2": t2, "gap": gap,
                      "set_verdict": bool(tied), "coefficients_covered": cover, "worst_direct_error": worst_direct,
                      "worst_cross_error": worst_cross,
-                     "generator": lab["generator"], "ross": from_ross(lab), "shrink_error": shrink_err, "seconds": r.get("seconds", 0.0),
+                     "generator": lab["generator"], "ross": from_ross(lab), "shrink_error": shrink_err,
+                     "seconds": r.get("seconds", 0.0),
                      "pair_separable": separable, "true_gap": float(lab.get("true_gap", float("nan"))),
                      "form": lab.get("form", key)})
     arr = lambda k, sel=None: np.array([x[k] for x in rows if sel is None or sel(x)], dtype=float)  # noqa: E731
