@@ -267,6 +267,32 @@ def kept_results(results_dir: Path, case_dirs: list[str]) -> dict[str, dict]:
     return kept
 
 
+def score_sets(set_dirs: list[str | Path]) -> dict:
+    """Score the kept results of several blind sets together (e.g. two seeds of one generator): case ids are
+    prefixed with their set's directory name, ``cases_in_set`` counts every case of every set (the score says
+    PARTIAL when some are not diagnosed yet), and each generator is scored apart as in :func:`run`."""
+    results, labels, families, total = [], {}, [], 0
+    for out in map(Path, set_dirs):
+        if not (out / "cases").is_dir() or not (out / "labels" / "labels.json").is_file():
+            raise InputError(f"{out}: not a blind set (expected cases/ and labels/labels.json)")
+        case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
+        set_labels = json.loads((out / "labels" / "labels.json").read_text())
+        total += len(case_dirs)
+        families += [generator_family(set_labels[Path(d).name]) for d in case_dirs]
+        for cid, r in kept_results(out / "results", case_dirs).items():
+            key = f"{out.name}/{cid}"
+            results.append({**r, "case": key})
+            labels[key] = set_labels[cid]
+    if not results:
+        raise InputError(f"{', '.join(map(str, set_dirs))}: no case diagnosed yet (results/ is empty)")
+    s = score(results, labels)
+    s["cases_in_set"] = total
+    s["by_generator"] = score_by_generator(results, labels)
+    for g, sub in s["by_generator"].items():
+        sub["cases_in_set"] = families.count(g)
+    return s
+
+
 def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, *, jobs: int = 2,
         use_ross: bool = True, progress=None, generator: str = "own", generate: bool = True,
         on_diagnosed=None, score_only: bool = False) -> dict:

@@ -39,17 +39,22 @@ def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
     import sys
     import warnings
 
-    from rotor_estimator.bench.diagnosis import format_score, run
+    from rotor_estimator.bench.diagnosis import format_score, run, score_sets
+    from rotor_estimator.core.errors import InputError
 
     warnings.simplefilter("ignore")
     if args.score_only and args.set is None:
-        from rotor_estimator.core.errors import InputError
-
-        raise InputError("--score-only scores a set already diagnosed in part: give it with --set DIR")
-    s = run(args.cases, args.seed, args.set or args.out, jobs=args.jobs, use_ross=not args.no_ross,
-            progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True), generator=args.generator,
-            generate=args.set is None, score_only=args.score_only,
-            on_diagnosed=lambda k, n: print(f"diagnosed {k} / {n}", file=sys.stderr, flush=True))
+        raise InputError("--score-only scores sets already diagnosed (in part): give them with --set DIR [DIR ...]")
+    if args.set is not None and len(args.set) > 1 and not args.score_only:
+        raise InputError("several --set directories are scored together with --score-only; diagnose each first "
+                         "(`bench diagnosis --set DIR`)")
+    if args.score_only:
+        s = score_sets(args.set)
+    else:
+        s = run(args.cases, args.seed, args.set[0] if args.set else args.out, jobs=args.jobs,
+                use_ross=not args.no_ross, generator=args.generator, generate=args.set is None,
+                progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True),
+                on_diagnosed=lambda k, n: print(f"diagnosed {k} / {n}", file=sys.stderr, flush=True))
     if args.json:
         brief = {k: v for k, v in s.items() if k != "rows"}
         brief["by_generator"] = {g: {k: v for k, v in sub.items() if k != "rows"}
@@ -169,11 +174,12 @@ def add_parser(subparsers: Any) -> None:
     b.add_argument("--no-ross", action="store_true", help="leave out the ROSS flexible-shaft cases")
     b.add_argument("--generator", choices=("own", "independent", "both"), default="own",
                    help="cases from the package's own generator, the independent one, or both (scored apart)")
-    b.add_argument("--set", type=Path, default=None,
-                   help="diagnose the blind set already in DIR (from `bench generate`) instead of drawing one")
+    b.add_argument("--set", type=Path, nargs="+", default=None, metavar="DIR",
+                   help="diagnose the blind set already in DIR (from `bench generate`) instead of drawing one; with "
+                        "--score-only, several sets are scored together")
     b.add_argument("--score-only", action="store_true",
-                   help="with --set: score the cases diagnosed so far (results/ of the set), diagnose none; a "
-                        "rerun without it resumes the others")
+                   help="with --set: score the cases diagnosed so far (results/ of each set, pooled), diagnose none; "
+                        "a rerun without it resumes the others")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_diagnosis)
 

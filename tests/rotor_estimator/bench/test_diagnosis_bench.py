@@ -113,3 +113,26 @@ def test_score_only_scores_the_kept_results_and_says_the_run_is_partial(tmp_path
     s = run(out_dir=tmp_path, generate=False, score_only=True)
     assert (s["cases"], s["cases_in_set"], s["top1"], s["false_alarms"]) == (2, 3, 1.0, 0)
     assert "PARTIAL: 2 of the set's 3 cases" in format_score(s)
+
+
+def test_two_sets_are_pooled_with_their_cases_kept_apart(tmp_path):
+    """Two seeds' sets (each with its own case_000) score as one: every kept result counts once under its set's
+    name, and the sets' sizes add up (the undiagnosed case makes the pooled score partial)."""
+    import json
+
+    from rotor_estimator.bench.diagnosis import score_sets
+
+    for name, effect, verdict in (("seed_a", ["pedestal"], "pedestal"), ("seed_b", ["pedestal"], "probe_runout")):
+        for cid in ("case_000", "case_001"):
+            (tmp_path / name / "cases" / cid).mkdir(parents=True)
+        (tmp_path / name / "labels").mkdir()
+        (tmp_path / name / "labels" / "labels.json").write_text(json.dumps(
+            {"case_000": _label(effect), "case_001": _label([])}))
+        (tmp_path / name / "results").mkdir()
+        (tmp_path / name / "results" / "case_000.json").write_text(json.dumps(
+            {"case": "case_000", "best_effect": verdict, "second_effect": "none", "top_two": [verdict],
+             "before": 2e-6, "shrink_ratio": 2.0, "seconds": 4.0}))
+    s = score_sets([tmp_path / "seed_a", tmp_path / "seed_b"])
+    assert (s["cases"], s["cases_in_set"], s["top1"]) == (2, 4, 0.5)
+    assert sorted(r["case"] for r in s["rows"]) == ["seed_a/case_000", "seed_b/case_000"]
+    assert "PARTIAL: 2 of the set's 4 cases" in format_score(s)
