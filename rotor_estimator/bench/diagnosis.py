@@ -5,7 +5,7 @@
 The diagnosis step reads only ``cases/<id>/recording.npz`` and ``rig.yaml``; the labels
 (``labels/labels.json``) are opened after every case has been diagnosed. Each case's result is kept in
 ``results/<id>.json`` as soon as it is done, so an interrupted run resumes where it stopped, and
-``score_only`` scores the cases diagnosed so far (the score says how many of the set they are).
+:func:`score_sets` scores the cases diagnosed so far (the score says how many of the set they are).
 
 Scores: confusion matrix (truth rows, verdict columns), top-1 and top-2 accuracy (a pair
 case counts top-1 when the verdict is one of its effects and top-2 when both are in the
@@ -270,7 +270,8 @@ def kept_results(results_dir: Path, case_dirs: list[str]) -> dict[str, dict]:
 def score_sets(set_dirs: list[str | Path]) -> dict:
     """Score the kept results of several blind sets together (e.g. two seeds of one generator): case ids are
     prefixed with their set's directory name, ``cases_in_set`` counts every case of every set (the score says
-    PARTIAL when some are not diagnosed yet), and each generator is scored apart as in :func:`run`."""
+    PARTIAL when some are not diagnosed yet), and each generator is scored apart. With one set the ids are
+    kept as they are."""
     results, labels, families, total = [], {}, [], 0
     for out in map(Path, set_dirs):
         if not (out / "cases").is_dir() or not (out / "labels" / "labels.json").is_file():
@@ -280,7 +281,7 @@ def score_sets(set_dirs: list[str | Path]) -> dict:
         total += len(case_dirs)
         families += [generator_family(set_labels[Path(d).name]) for d in case_dirs]
         for cid, r in kept_results(out / "results", case_dirs).items():
-            key = f"{out.name}/{cid}"
+            key = f"{out.name}/{cid}" if len(set_dirs) > 1 else cid
             results.append({**r, "case": key})
             labels[key] = set_labels[cid]
     if not results:
@@ -295,11 +296,10 @@ def score_sets(set_dirs: list[str | Path]) -> dict:
 
 def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, *, jobs: int = 2,
         use_ross: bool = True, progress=None, generator: str = "own", generate: bool = True,
-        on_diagnosed=None, score_only: bool = False) -> dict:
+        on_diagnosed=None) -> dict:
     """Generate (``generator``: own, independent or both; ``generate=False`` diagnoses the set already in
     ``out_dir``, skipping the cases with a kept result), diagnose (``jobs`` processes; ``on_diagnosed(done,
-    total)`` after each case), score each generator apart. ``score_only``: diagnose nothing, score the kept
-    results. Returns the score dict (``cases_in_set``: the set's size, ``cases`` those scored)."""
+    total)`` after each case), score each generator apart (:func:`score_sets`). Returns the score dict."""
     import functools
     import tempfile
 
@@ -318,7 +318,7 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
     results_dir = out / "results"
     results_dir.mkdir(exist_ok=True)
     kept = kept_results(results_dir, case_dirs)
-    pending = [] if score_only else [d for d in case_dirs if Path(d).name not in kept]
+    pending = [d for d in case_dirs if Path(d).name not in kept]
     done = [len(kept)]
 
     def _tick(_n: int) -> None:
@@ -327,18 +327,11 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
             on_diagnosed(done[0], len(case_dirs))
 
     # a local Dask cluster of ``jobs`` single-thread processes (rotor_estimator.batch.runner)
-    fresh = map_ordered(functools.partial(diagnose_and_keep, results_dir=str(results_dir)), pending,
-                        workers=max(1, jobs), inline=False, progress=_tick) if pending else []
-    by_case = {**kept, **{r["case"]: r for r in fresh}}
-    results = [by_case[Path(d).name] for d in case_dirs if Path(d).name in by_case]
-    if not results:
-        raise InputError(f"{out}: no case diagnosed yet (results/ is empty)")
-    labels = json.loads((out / "labels" / "labels.json").read_text())  # opened only now
-    s = score(results, labels)
-    s["cases_in_set"] = len(case_dirs)
-    s["by_generator"] = score_by_generator(results, labels)
-    for g, sub in s["by_generator"].items():
-        sub["cases_in_set"] = sum(generator_family(labels[Path(d).name]) == g for d in case_dirs)
+    if pending:  # each result is kept in results/ by the worker itself
+        map_ordered(functools.partial(diagnose_and_keep, results_dir=str(results_dir)), pending,
+                    workers=max(1, jobs), inline=False, progress=_tick)
+    s = score_sets([out])  # the labels are opened only now
+    results = list(kept_results(results_dir, case_dirs).values())
     s["generation_seconds"] = t_gen
     s["total_seconds"] = time.time() - t0
     (out / "results.json").write_text(json.dumps({"results": results, "score": s}, indent=1, default=str))

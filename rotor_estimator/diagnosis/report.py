@@ -15,6 +15,7 @@ import numpy as np
 
 from rotor_estimator.io.safe_write import output_directory, save_figure, write_text
 from rotor_estimator.diagnosis.api import Diagnosis
+from rotor_estimator.diagnosis.ranking import SIGNIFICANCE_DELTA_BIC
 from rotor_estimator.diagnosis.residuals import CHANNELS
 
 
@@ -134,7 +135,7 @@ def plot_ranking(d: Diagnosis, path: Path) -> None:
     colors = {"verdict": "tab:red", "tied": "tab:orange", "pair": "tab:blue", "other": "tab:gray"}
     fig, ax = plt.subplots(figsize=(8, 0.3 * len(bars) + 1.5))
     ax.barh([b[0] for b in bars], [b[1] for b in bars], color=[colors[b[2]] for b in bars])
-    threshold = d.summary()["decision_rule"]["min_delta_bic"]
+    threshold = SIGNIFICANCE_DELTA_BIC  # the decision rule's (d.summary() would recompute the whole summary)
     ax.axvline(threshold, color="k", ls="--", lw=0.8, label=f"significance ({threshold:g})")
     ax.axvline(0.0, color="k", lw=0.6)
     ax.set_xscale("symlog", linthresh=10.0)

@@ -84,13 +84,13 @@ def test_each_generator_is_scored_apart():
 
 
 def test_score_only_scores_the_kept_results_and_says_the_run_is_partial(tmp_path):
-    """An interrupted benchmark keeps one result file per finished case: ``score_only`` scores exactly those
+    """An interrupted benchmark keeps one result file per finished case: ``score_sets`` scores exactly those
     (a half-written file is not a result), reports the set's size, and flags the score as partial."""
     import json
 
     import pytest
 
-    from rotor_estimator.bench.diagnosis import kept_results, run
+    from rotor_estimator.bench.diagnosis import kept_results, score_sets
     from rotor_estimator.core.errors import InputError
 
     for cid in ("case_000", "case_001", "case_002"):
@@ -100,7 +100,7 @@ def test_score_only_scores_the_kept_results_and_says_the_run_is_partial(tmp_path
         {"case_000": _label([]), "case_001": _label(["probe_runout"]), "case_002": _label(["pedestal"])}))
     (tmp_path / "results").mkdir()
     with pytest.raises(InputError, match="no case diagnosed"):
-        run(out_dir=tmp_path, generate=False, score_only=True)
+        score_sets([tmp_path])
     (tmp_path / "results" / "case_000.json").write_text(json.dumps(
         {"case": "case_000", "best_effect": "none", "second_effect": "none", "top_two": ["none"], "before": 1e-6,
          "shrink_ratio": 1.0, "seconds": 3.0}))
@@ -110,7 +110,7 @@ def test_score_only_scores_the_kept_results_and_says_the_run_is_partial(tmp_path
     (tmp_path / "results" / "case_002.json").write_text('{"case": "case_0')  # cut mid-write
     dirs = sorted(str(p) for p in (tmp_path / "cases").iterdir())
     assert sorted(kept_results(tmp_path / "results", dirs)) == ["case_000", "case_001"]
-    s = run(out_dir=tmp_path, generate=False, score_only=True)
+    s = score_sets([tmp_path])
     assert (s["cases"], s["cases_in_set"], s["top1"], s["false_alarms"]) == (2, 3, 1.0, 0)
     assert "PARTIAL: 2 of the set's 3 cases" in format_score(s)
 
