@@ -39,7 +39,8 @@ def random_impacts(rng, duration_s) -> tuple[Impact, ...]:
     return tuple(out)
 
 
-def nominal_unabsorbed_rms(recording: RigRecording, rig, starts, *, max_nfev: int = 25) -> float:
+def nominal_unabsorbed_rms(recording: RigRecording, rig, starts, *, max_nfev: int = 25,
+                           start_transient: bool = False) -> float:
     """RMS (m) of a noise-free record left after the diagnosis's own nominal output-error fit.
 
     A cheap proxy of the realized nominal residual: the shaft track from the keyphasor (as the
@@ -47,7 +48,8 @@ def nominal_unabsorbed_rms(recording: RigRecording, rig, starts, *, max_nfev: in
     :func:`~rotor_estimator.diagnosis.context.fit_nominal` (exact-discretization re-simulation,
     Levenberg-Marquardt over the 8 coefficients, DC projected out), from each of ``starts``; the
     smallest residual wins. No EKF (the diagnosis's
-    EKF only supplies a start). ``recording.probes_m`` must be the clean signal.
+    EKF only supplies a start). ``recording.probes_m`` must be the clean signal. ``start_transient``: the
+    start transient estimated too (what the diagnosis does for a record whose start shows one).
     """
     shaft = shaft_track(recording)
     mats = rotor_matrices(rig)
@@ -59,5 +61,6 @@ def nominal_unabsorbed_rms(recording: RigRecording, rig, starts, *, max_nfev: in
     u_s = imbalance_force(mats, shaft.angle_rad, shaft.speed_rad_s, shaft.accel_rad_s2)
     u_z = impact_force(mats, recording.impact_force_n)
 
-    res = fit_nominal(rig, mats, t, y, mask, shaft, schedule, u_s, u_z, h, starts, max_nfev=max_nfev)
+    res = fit_nominal(rig, mats, t, y, mask, shaft, schedule, u_s, u_z, h, starts, max_nfev=max_nfev,
+                      start_transient=start_transient)
     return float("inf") if res is None else float(np.sqrt(2 * res.cost / res.fun.size)) * 1e-6

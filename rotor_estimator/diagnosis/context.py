@@ -14,6 +14,15 @@ Every candidate effect is then fitted by variable projection on the output error
 ``e = y - y_nom``: its own columns/offset plus the nominal's linearized coefficient
 sensitivity ``J = dy_nom/dr`` and the DC columns, so the bearing coefficients are
 re-estimated jointly with the effect (one Gauss-Newton step about the nominal fit).
+
+A record that does not start in the periodic steady state the re-simulation starts in (a run from
+rest, a record cut after a speed change) carries the free decay of the rotor's modes from an unknown
+initial state. When the record before its first impact shows it (:func:`start_transient_shows`),
+every fit (the nominal's included) estimates that state: the free response of the rigid model from
+each of its 8 states enters as 8 more linear columns (:func:`.linsim.free_response`; output-error
+identification with an estimated initial state), instead of an unmodelled decay that the candidate
+effects compete to absorb. Otherwise the record is taken to start steady: an impact right after the
+start is a free response too, and an estimated initial state would absorb its scale.
 """
 from __future__ import annotations
 
@@ -29,7 +38,7 @@ from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.core.model import RotorMatrices, imbalance_force, impact_force, rotor_matrices
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.diagnosis import models
-from rotor_estimator.diagnosis.linsim import SpeedSchedule, simulate_linear
+from rotor_estimator.diagnosis.linsim import SpeedSchedule, free_response, simulate_linear
 
 #: Scale of the 8 coefficients in the output-error fit (N/m and N*s/m).
 COEFFICIENT_SCALE = np.array([1e5] * 4 + [1e3] * 4)
@@ -37,6 +46,12 @@ COEFFICIENT_SCALE = np.array([1e5] * 4 + [1e3] * 4)
 WARMUP_S = 0.010
 #: Fraction of the fit span used for fitting in the held-out check (the rest is predicted).
 HELD_OUT_SPLIT = 0.6
+#: States of the rigid model whose initial deviation each fit estimates (the start transient's columns).
+START_STATES = 8
+#: BIC improvement of the nominal fit before the first impact for the start transient to be estimated.
+START_TRANSIENT_DELTA_BIC = 30.0
+#: Fewest fit samples before the first impact on which a start transient can be shown.
+START_TRANSIENT_MIN_SAMPLES = 200
 
 
 @dataclass
@@ -89,6 +104,7 @@ class FitContext:
     v_nom_m_s: np.ndarray                # (N, 4) nominal probe velocities
     z_nom_m: np.ndarray                  # (N, 4) nominal bearing displacements
     jacobian: np.ndarray                 # (N, 4, 8) d y_nom / d (r / COEFFICIENT_SCALE)
+    start_columns_m: np.ndarray          # (N, 4, START_STATES or 0) free response from each unit initial state
     noise_std_m: np.ndarray              # (4,) estimated noise per channel
     ekf_innovation_m: np.ndarray         # (N, 4)
     ekf_innovation_std_m: np.ndarray     # (N, 4)
@@ -107,17 +123,23 @@ class FitContext:
         return 1.0 / float(np.median(np.diff(self.t_s)))
 
     @property
+    def start_transient(self) -> bool:
+        """Whether this record's fits estimate the start transient (:func:`start_transient_shows`)."""
+        return self.start_columns_m.shape[2] > 0
+
+    @property
     def mean_speed_rad_s(self) -> float:
         return float(np.mean(self.shaft.speed_rad_s[self.mask]))
 
     @property
     def residual_m(self) -> np.ndarray:
-        """Nominal output error with the fitted DC removed, (N, 4)."""
-        return self.y_m - self.y_nom_m - self.dc_offset_m
+        """Nominal output error with the fitted DC and start transient removed, (N, 4)."""
+        return self.y_m - self.y_nom_m - self.nuisance_fit_m
 
-    @property
-    def dc_offset_m(self) -> np.ndarray:
-        return (self.y_m - self.y_nom_m)[self.mask].mean(axis=0)
+    @cached_property
+    def nuisance_fit_m(self) -> np.ndarray:
+        """The least-squares DC gap plus start transient of the nominal output error on the fit rows, (N, 4)."""
+        return nuisance_fit(self.start_columns_m, self.y_m - self.y_nom_m, self.mask)
 
     def response(self, u_smooth: np.ndarray, u_step: np.ndarray | None = None) -> np.ndarray:
         """Probe output (N, 4) of the nominal rigid model (or :attr:`response_model`) driven by generalized
@@ -136,6 +158,34 @@ class FitContext:
     @property
     def period_s(self) -> float:
         return 1.0 / self.sample_rate_hz
+
+
+def nuisance_columns(start_columns_m: np.ndarray) -> np.ndarray:
+    """``[D, S]`` (N, 4, 4 + s): one DC column per probe (its gap), then the start transient's (s = 0 or 8)."""
+    n = start_columns_m.shape[0]
+    dc = np.zeros((n, 4, 4))
+    for c in range(4):
+        dc[:, c, c] = 1.0
+    return np.concatenate([dc, start_columns_m], axis=2)
+
+
+def nuisance_fit(start_columns_m: np.ndarray, error_m: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Least-squares DC gap plus start transient of ``error_m`` (N, 4) on ``rows``, evaluated on every sample."""
+    cols = nuisance_columns(start_columns_m)
+    a = cols[rows].reshape(-1, cols.shape[2])
+    norm = np.sqrt((a * a).sum(axis=0))
+    norm[norm == 0] = 1.0
+    coef, *_ = np.linalg.lstsq(a / norm, error_m[rows].ravel(), rcond=1e-10)
+    return np.einsum("nck,k->nc", cols, coef / norm)
+
+
+def start_columns(mats, r, schedule, h_s, *, estimated: bool = True) -> np.ndarray:
+    """Probe-displacement free response of the rigid model of Eq. 2 at ``r`` from each unit initial state
+    (N, 4, 8); (N, 4, 0) when the start transient is not ``estimated``."""
+    if not estimated:
+        return np.zeros((schedule.block_of_sample.size, 4, 0))
+    return free_response(lambda w: models.rigid_state_matrix(mats, r, w), models.rigid_input(mats),
+                         models.rigid_output(mats)[:4], h_s, schedule)
 
 
 def simulate_nominal(rig, mats, r, t_s, shaft, schedule, u_smooth, u_step, h_s):
@@ -164,8 +214,10 @@ def recentered(ctx: "FitContext", coefficients: np.ndarray) -> "FitContext":
     y_nom, v_nom, z_nom, jac = _nominal_products(ctx.rig, ctx.mats, np.asarray(coefficients, float), ctx.t_s,
                                                  ctx.shaft, ctx.schedule, ctx.known_smooth_n, ctx.known_step_n,
                                                  ctx.period_s)
-    return replace(ctx, coefficients=np.asarray(coefficients, float), y_nom_m=y_nom, v_nom_m_s=v_nom,
-                   z_nom_m=z_nom, jacobian=jac, _cache={})
+    r = np.asarray(coefficients, float)
+    return replace(ctx, coefficients=r, y_nom_m=y_nom, v_nom_m_s=v_nom, z_nom_m=z_nom, jacobian=jac,
+                   start_columns_m=start_columns(ctx.mats, r, ctx.schedule, ctx.period_s,
+                                                 estimated=ctx.start_transient), _cache={})
 
 
 def with_coefficients(ctx: "FitContext", coefficients: np.ndarray) -> "FitContext":
@@ -175,21 +227,28 @@ def with_coefficients(ctx: "FitContext", coefficients: np.ndarray) -> "FitContex
     r = np.asarray(coefficients, float)
     y_nom, v_nom, z_nom = simulate_nominal(ctx.rig, ctx.mats, r, ctx.t_s, ctx.shaft, ctx.schedule,
                                             ctx.known_smooth_n, ctx.known_step_n, ctx.period_s)
-    return replace(ctx, coefficients=r, y_nom_m=y_nom, v_nom_m_s=v_nom, z_nom_m=z_nom, _cache={})
+    return replace(ctx, coefficients=r, y_nom_m=y_nom, v_nom_m_s=v_nom, z_nom_m=z_nom,
+                   start_columns_m=start_columns(ctx.mats, r, ctx.schedule, ctx.period_s,
+                                                 estimated=ctx.start_transient), _cache={})
 
 
 def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np.ndarray, shaft: ShaftTrack,
                 schedule: SpeedSchedule, u_smooth: np.ndarray, u_step: np.ndarray, h_s: float, starts, *,
-                max_nfev: int, x_scale: float | None = None):
+                max_nfev: int, x_scale: float | None = None, start_transient: bool = False):
     """The nominal output-error fit: Levenberg-Marquardt over the 8 coefficients of Eq. 2, re-simulated by
-    :func:`simulate_nominal`, on the output error of ``rows`` with each channel's mean (the probe's DC gap)
-    projected out, in micrometres (so that the LM tolerances mean something). Best of ``starts`` (N/m and
-    N*s/m; non-finite or failing starts are skipped); ``None`` when none converges. ``max_nfev`` counts
-    Jacobians (9 evaluations each). ``x_scale``: scipy's (``None``, its default, or 1.0)."""
+    :func:`simulate_nominal`, on the output error of ``rows`` with each channel's DC gap (and, with
+    ``start_transient``, the start transient of :func:`start_columns`) projected out, in micrometres (so
+    that the LM tolerances mean something). Best of ``starts`` (N/m and N*s/m; non-finite or failing starts
+    are skipped); ``None`` when none converges. ``max_nfev`` counts Jacobians (9 evaluations each).
+    ``x_scale``: scipy's (``None``, its default, or 1.0)."""
     def residual(p):
-        yn, _, _ = simulate_nominal(rig, mats, p * COEFFICIENT_SCALE, t_s, shaft, schedule, u_smooth, u_step, h_s)
-        e = (y_m - yn)[rows]
-        return (e - e.mean(axis=0)).ravel() * 1e6
+        r = p * COEFFICIENT_SCALE
+        yn, _, _ = simulate_nominal(rig, mats, r, t_s, shaft, schedule, u_smooth, u_step, h_s)
+        e = y_m - yn
+        if not np.all(np.isfinite(e[rows])):
+            return np.full(int(rows.sum()) * 4, 1e3 * (float(np.sqrt(np.mean(y_m[rows] ** 2))) + 1e-12)) * 1e6
+        s = start_columns(mats, r, schedule, h_s, estimated=start_transient)
+        return (e - nuisance_fit(s, e, rows))[rows].ravel() * 1e6
 
     best = None
     for r0 in starts:
@@ -203,6 +262,29 @@ def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np
         if best is None or res.cost < best.cost:
             best = res
     return best
+
+
+def start_transient_shows(mats, r, y_m: np.ndarray, rows: np.ndarray, impact_force_n: np.ndarray,
+                          y_nom_m: np.ndarray, schedule: SpeedSchedule, h_s: float) -> bool:
+    """True when the nominal output error before the first impact (the whole record without one) is better
+    explained with the start transient than without: BIC down by :data:`START_TRANSIENT_DELTA_BIC` on at
+    least :data:`START_TRANSIENT_MIN_SAMPLES` fit samples (a record starting right before an impact cannot
+    tell its initial state from the impact's scale, so it is taken to start steady)."""
+    hit = np.flatnonzero(np.any(impact_force_n != 0.0, axis=1))
+    pre = rows.copy()
+    if hit.size:
+        pre[hit[0]:] = False
+    n = int(pre.sum())
+    if n < START_TRANSIENT_MIN_SAMPLES:
+        return False
+    e = y_m - y_nom_m
+    steady = start_columns(mats, r, schedule, h_s, estimated=False)
+    rss_steady = float(np.sum((e - nuisance_fit(steady, e, pre))[pre] ** 2))
+    cols = start_columns(mats, r, schedule, h_s)
+    rss_start = float(np.sum((e - nuisance_fit(cols, e, pre))[pre] ** 2))
+    m = 4 * n
+    gain = m * np.log(max(rss_steady, 1e-300) / max(rss_start, 1e-300)) - cols.shape[2] * np.log(m)
+    return bool(gain >= START_TRANSIENT_DELTA_BIC)
 
 
 @single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
@@ -245,12 +327,20 @@ def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConf
     if best is None:
         raise InputError("the nominal output-error fit failed from both the EKF estimate and r0")
     r_hat = best.x * COEFFICIENT_SCALE
+    y_nom, _, _ = simulate_nominal(rig, mats, r_hat, t, shaft, schedule, u_s, u_z, h)
+    transient = start_transient_shows(mats, r_hat, y_clean, mask, recording.impact_force_n, y_nom, schedule, h)
+    if transient:  # refitted with the start transient estimated (its decay had dragged the coefficients)
+        again = fit_nominal(rig, mats, t, y_clean, mask, shaft, schedule, u_s, u_z, h, [r_hat, r_ekf],
+                            max_nfev=max_nfev, x_scale=1.0, start_transient=True)
+        r_hat = r_hat if again is None else again.x * COEFFICIENT_SCALE
     y_nom, v_nom, z_nom, jac = _nominal_products(rig, mats, r_hat, t, shaft, schedule, u_s, u_z, h)
-    e0 = y_clean - y_nom
+    s0 = start_columns(mats, r_hat, schedule, h, estimated=transient)
+    e0 = y_clean - y_nom - nuisance_fit(s0, y_clean - y_nom, mask)
     low = max(0.3 * (1 / h), 10 * float(np.mean(shaft.speed_rad_s)) / (2 * np.pi))
     sigma = noise_std_from_spectrum(e0[mask], 1 / h, low)
     return FitContext(
         rig=rig, mats=mats, t_s=t, y_m=y_clean, shaft=shaft, impact_force_n=recording.impact_force_n, mask=mask,
+        start_columns_m=s0,
         fit_rows=mask & (t < t_cut), test_rows=mask & (t >= t_cut), schedule=schedule, coefficients=r_hat,
         coefficients_ekf=r_ekf, y_nom_m=y_nom, v_nom_m_s=v_nom, z_nom_m=z_nom, jacobian=jac, noise_std_m=sigma,
         ekf_innovation_m=lp.innovation_m, ekf_innovation_std_m=lp.innovation_std_m, ekf_nis=lp.nis,

@@ -4,10 +4,11 @@
 
 The augmented model's probe output is written as
 
-    y ~ y_nom + offset(theta_nl) + J dr + D d + X(theta_nl) theta_lin
+    y ~ y_nom + offset(theta_nl) + J dr + D d + S s0 + X(theta_nl) theta_lin
 
 with ``J`` the nominal sensitivity to the 8 bearing coefficients, ``D`` one DC column per
-probe, ``X`` the effect's columns and ``offset`` its fixed-gain part. For fixed nonlinear
+probe, ``S`` the start transient's (the free response from each of the 8 initial states,
+:func:`.context.start_columns`), ``X`` the effect's columns and ``offset`` its fixed-gain part. For fixed nonlinear
 parameters ``theta_nl`` the rest is linear and eliminated (Golub & Pereyra's variable
 projection); the nonlinear parameters are found by a grid then
 :func:`scipy.optimize.least_squares`. Evidence: the Bayesian information criterion
@@ -19,7 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, FitContext
+from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, FitContext, nuisance_columns
+
+
+def fixed_columns(ctx: FitContext) -> int:
+    """Columns ahead of an effect's in every design: 8 coefficient sensitivities, 4 DC gaps, the start
+    transient's (0 or 8)."""
+    return 12 + ctx.start_columns_m.shape[2]
 
 
 @dataclass(frozen=True)
@@ -28,6 +35,7 @@ class LinearSolution:
 
     dr: np.ndarray            # (8,) coefficient correction, scaled units (times COEFFICIENT_SCALE = SI)
     dc_m: np.ndarray          # (4,)
+    start_state: np.ndarray   # (0 or 8,) initial deviation from the periodic steady state
     theta: np.ndarray         # (k,) effect (and extra) linear parameters
     theta_cov: np.ndarray     # (k, k)
     rss_m2: float
@@ -36,11 +44,8 @@ class LinearSolution:
 
 
 def _design(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray:
-    n = ctx.t_s.size
-    dc = np.zeros((n, 4, 4))
-    for c in range(4):
-        dc[:, c, c] = 1.0
-    parts = [ctx.jacobian, dc]
+    """``[J, D, S, cols]`` (N, 4, fixed_columns(ctx) + k)."""
+    parts = [ctx.jacobian, nuisance_columns(ctx.start_columns_m)]
     if cols is not None and cols.shape[2]:
         parts.append(cols)
     return np.concatenate(parts, axis=2)
@@ -48,7 +53,7 @@ def _design(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray:
 
 def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | None,
                  rows: np.ndarray | None = None) -> LinearSolution:
-    """Least squares of ``y - y_nom - offset`` on ``[J, D, cols]`` over ``rows`` (default: ctx.mask)."""
+    """Least squares of ``y - y_nom - offset`` on ``[J, D, S, cols]`` over ``rows`` (default: ctx.mask)."""
     rows = ctx.mask if rows is None else rows
     full = _design(ctx, cols)
     target = ctx.y_m - ctx.y_nom_m - (0.0 if offset is None else offset)
@@ -66,7 +71,9 @@ def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | 
     sigma2 = rss / max(n_obs - k_all, 1)
     cov = ata_inv * sigma2 / np.outer(norm, norm)
     pred = ctx.y_nom_m + (0.0 if offset is None else offset) + np.einsum("nck,k->nc", full, coef)
-    return LinearSolution(dr=coef[:8], dc_m=coef[8:12], theta=coef[12:], theta_cov=cov[12:, 12:], rss_m2=rss,
+    k0 = fixed_columns(ctx)
+    return LinearSolution(dr=coef[:8], dc_m=coef[8:12], start_state=coef[12:k0], theta=coef[k0:],
+                          theta_cov=cov[k0:, k0:], rss_m2=rss,
                           n_obs=int(n_obs), prediction_m=pred)
 
 
@@ -96,7 +103,7 @@ def residual_after_fit(x: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class Projector:
-    """Orthogonal projection off the fixed columns ``[J, D, base]`` on ``rows`` (QR computed once)."""
+    """Orthogonal projection off the fixed columns ``[J, D, S, base]`` on ``rows`` (QR computed once)."""
 
     def __init__(self, ctx: FitContext, base_cols: np.ndarray | None, rows: np.ndarray) -> None:
         full = _design(ctx, base_cols)
@@ -205,13 +212,12 @@ def held_out_rms(ctx: FitContext, offset, cols) -> float:
     n = ctx.t_s.size
     cols = np.zeros((n, 4, 0)) if cols is None else cols
     target = ctx.y_m - ctx.y_nom_m - off
-    dc = np.zeros((n, 4, 4))
-    for c in range(4):
-        dc[:, c, c] = 1.0
-    design = np.concatenate([dc, cols], axis=2)
+    design = np.concatenate([nuisance_columns(ctx.start_columns_m), cols], axis=2)
     a = design[ctx.fit_rows].reshape(-1, design.shape[2])
-    coef, *_ = np.linalg.lstsq(a, target[ctx.fit_rows].ravel(), rcond=None)
-    pred = ctx.y_nom_m + off + np.einsum("nck,k->nc", design, coef)
+    norm = np.sqrt((a * a).sum(axis=0))
+    norm[norm == 0] = 1.0
+    coef, *_ = np.linalg.lstsq(a / norm, target[ctx.fit_rows].ravel(), rcond=1e-10)
+    pred = ctx.y_nom_m + off + np.einsum("nck,k->nc", design, coef / norm)
     err = (ctx.y_m - pred)[ctx.test_rows]
     return float(np.sqrt(np.mean(err ** 2)))
 

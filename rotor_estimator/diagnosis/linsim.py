@@ -193,8 +193,96 @@ def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np
 
 
 @njit(cache=True)
-def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0):
-    """The FOH/ZOH recursion with a cubic generalized force ``f_j = -k3_j z_j^3``, ``z = q[z0:z0+m]``.
+def _free_response(phi, block, c_out, s0, n_samples, floor):
+    """``out[k, :, i] = C Phi_k ... Phi_1 s0[:, i]``: the output of each initial state ``s0[:, i]`` (no input).
+
+    Stops (zeros after) once every state's response is below ``floor`` times its start: a decayed transient.
+    """
+    n = phi.shape[1]
+    q = s0.shape[1]
+    p = c_out.shape[0]
+    out = np.zeros((n_samples, p, q))
+    s = s0.copy()
+    nxt = np.empty((n, q))
+    for k in range(n_samples):
+        big = 0.0
+        for r in range(p):
+            for j in range(q):
+                acc = 0.0
+                for i in range(n):
+                    acc += c_out[r, i] * s[i, j]
+                out[k, r, j] = acc
+        for i in range(n):
+            for j in range(q):
+                big = max(big, abs(s[i, j]))
+        if big < floor or k == n_samples - 1:
+            break
+        b = block[k]
+        for i in range(n):
+            for j in range(q):
+                acc = 0.0
+                for m in range(n):
+                    acc += phi[b, i, m] * s[m, j]
+                nxt[i, j] = acc
+        for i in range(n):
+            for j in range(q):
+                s[i, j] = nxt[i, j]
+    return out
+
+
+#: A start transient below this fraction of its initial state is taken as decayed (:func:`free_response`).
+FREE_RESPONSE_FLOOR = 1e-9
+
+
+def free_response(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,
+                  schedule: SpeedSchedule, *, states: np.ndarray | None = None,
+                  cache: dict | None = None) -> np.ndarray:
+    """Output (N, p, q) of the unforced model from each unit initial state ``e_i`` (``i`` in ``states``, default
+    all): the columns of a start transient ``C Phi^k dq0`` (output-error identification with an estimated
+    initial state).
+
+    A record that does not start in the periodic steady state the re-simulation assumes (a run from rest,
+    a record cut just after a speed change) carries the free decay of the model's modes from an unknown
+    state ``dq0``; it enters the output linearly, so each fit estimates it like the DC gap."""
+    phi, _, _ = _discretized_blocks(build_a, b, h_s, schedule, cache)
+    s0 = np.eye(b.shape[0])
+    if states is not None:
+        s0 = np.ascontiguousarray(s0[:, np.asarray(states, dtype=np.int64)])
+    return _free_response(phi, np.ascontiguousarray(schedule.block_of_sample), np.ascontiguousarray(c, dtype=float),
+                          s0, int(schedule.block_of_sample.size), FREE_RESPONSE_FLOOR)
+
+
+@njit(cache=True)
+def _bearing_force(states, k, z0, k3, static, radial, out):
+    """Nonlinear bearing force on ``z = states[k, z0:z0+m]`` (x1, y1, x2, y2) into ``out``.
+
+    ``radial == 0``: ``f_j = -k3_j z_j^3`` per axis. ``radial == 1``: a radial cubic ``-k3 |d|^2 d`` on each
+    bearing's displacement ``d = s + z`` from its centre (``s = static``: the static load point), less its
+    value and tangent at ``s`` (``|s|^2 I + 2 s s^T``), which the linear coefficients already hold.
+    """
+    m = out.shape[0]
+    if radial == 0:
+        for j in range(m):
+            zj = states[k, z0 + j]
+            out[j] = -k3[j] * zj * zj * zj
+        return
+    for j in range(0, m, 2):
+        zx = states[k, z0 + j]
+        zy = states[k, z0 + j + 1]
+        sx = static[j]
+        sy = static[j + 1]
+        dx = sx + zx
+        dy = sy + zy
+        r2 = dx * dx + dy * dy
+        s2 = sx * sx + sy * sy
+        sd = sx * zx + sy * zy
+        out[j] = -k3[j] * (r2 * dx - s2 * sx - s2 * zx - 2.0 * sx * sd)
+        out[j + 1] = -k3[j + 1] * (r2 * dy - s2 * sy - s2 * zy - 2.0 * sy * sd)
+
+
+@njit(cache=True)
+def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, radial):
+    """The FOH/ZOH recursion with a cubic generalized bearing force (:func:`_bearing_force`), ``z = q[z0:z0+m]``.
 
     The nonlinear force is first-order held too, its end value from a predictor step
     (Heun): ``q+ = Phi q + G1 (u + f(q)) + G2 du``, then ``q[k+1] = q+ + G2 (f(q+) - f(q))``.
@@ -212,9 +300,7 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0):
         states[0, i] = q0[i]
     for k in range(n_samples - 1):
         b = block[k]
-        for j in range(m):
-            z = states[k, z0 + j]
-            fk[j] = -k3[j] * z * z * z
+        _bearing_force(states, k, z0, k3, static, radial, fk)
         for i in range(n):
             acc = 0.0
             for j in range(n):
@@ -222,9 +308,7 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0):
             for j in range(m):
                 acc += g1[b, i, j] * (us[k, j] + uz[k, j] + fk[j]) + g2[b, i, j] * (us[k + 1, j] - us[k, j])
             pred[i] = acc
-        for j in range(m):
-            z = pred[z0 + j]
-            f1[j] = -k3[j] * z * z * z
+        _bearing_force(pred.reshape(1, n), 0, z0, k3, static, radial, f1)
         for i in range(n):
             acc = pred[i]
             for j in range(m):
@@ -236,9 +320,10 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0):
 
 def simulate_cubic(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,
                    schedule: SpeedSchedule, angle_rad: np.ndarray, u_smooth: np.ndarray, u_step: np.ndarray,
-                   k3: np.ndarray, z_index: int, *, preroll_s: float = 0.05,
+                   k3: np.ndarray, z_index: int, *, preroll_s: float = 0.05, static_m: np.ndarray | None = None,
                    cache: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`simulate_linear` plus the cubic force ``-k3 z^3`` on states ``z_index..z_index+m``.
+    """:func:`simulate_linear` plus the cubic force ``-k3 z^3`` on states ``z_index..z_index+m`` (per axis), or,
+    with ``static_m`` (m,), the radial cubic about that static load point (:func:`_bearing_force`).
 
     The nonlinear periodic state is reached by a pre-roll of ``preroll_s`` seconds driven
     by the steady harmonic part of ``u_smooth`` (fitted over the first revolutions),
@@ -258,6 +343,8 @@ def simulate_cubic(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.
     uz = np.ascontiguousarray(np.vstack([np.zeros((n_pre, m)), u_step]), dtype=float)
     block = np.ascontiguousarray(np.concatenate([np.zeros(n_pre, dtype=np.int64),
                                                  schedule.block_of_sample.astype(np.int64)]))
+    radial = 0 if static_m is None else 1
+    static = np.zeros(m) if static_m is None else np.ascontiguousarray(static_m, dtype=float)
     out, states = _propagate_cubic(phi, g1, g2, block, us, uz, q0, np.ascontiguousarray(c, dtype=float),
-                                   np.ascontiguousarray(k3, dtype=float), z_index)
+                                   np.ascontiguousarray(k3, dtype=float), z_index, static, radial)
     return out[n_pre:], states[n_pre:]

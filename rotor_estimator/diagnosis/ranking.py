@@ -28,8 +28,10 @@ from scipy.optimize import least_squares
 from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, FitContext
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
-from rotor_estimator.diagnosis.fitting import (LinearSolution, Projector, bic, coefficients_after, correlation_segment,
-                                              spectral_covariance, held_out_rms, residual_after_fit, solve_linear)
+from rotor_estimator.diagnosis.context import nuisance_columns
+from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
+                                              correlation_segment, spectral_covariance, held_out_rms,
+                                              residual_after_fit, solve_linear)
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
 SIGNIFICANCE_DELTA_BIC = 30.0
@@ -44,8 +46,9 @@ TIE_MARGIN_BIC = 10.0
 #: Likelihood-ratio level for the richer effect's better fit to count as real (chi-square with the extra
 #: parameters as degrees of freedom).
 TIE_LR_QUANTILE = 0.99
-#: Nominal parameters counted in the BIC: 8 coefficients + 4 DC offsets.
-NOMINAL_PARAMS = 12
+def nominal_params(ctx: FitContext) -> int:
+    """Nominal parameters counted in the BIC: 8 coefficients, 4 DC offsets, the start transient's 0 or 8."""
+    return fixed_columns(ctx)
 #: Candidates re-linearized (outer Gauss-Newton on the coefficients) after the first pass: every one with
 #: positive evidence (an effect the nominal fit absorbed by dragging the coefficients shows little in the
 #: first pass, and a short list let an omnibus effect win by default).
@@ -207,7 +210,7 @@ def predicts_held_out(candidate_rms_m: float, reference_rms_m: float) -> bool:
 def nominal_solution(ctx: FitContext) -> tuple[LinearSolution, float, float]:
     """The nominal model's (re-)solution, its BIC and held-out RMS."""
     sol = solve_linear(ctx, None, None)
-    return sol, bic(sol.rss_m2, sol.n_obs, NOMINAL_PARAMS), held_out_rms(ctx, None, None)
+    return sol, bic(sol.rss_m2, sol.n_obs, nominal_params(ctx)), held_out_rms(ctx, None, None)
 
 
 def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = (), *,
@@ -267,10 +270,11 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     nl_sens = _nl_sensitivities(ctx, effect, nl, base, fixed_base, base_effects, sol, all_off, all_cols) \
         if nl.size else np.zeros((n, 4, 0))
     cov = parameter_covariance(ctx, all_cols, nl_sens, sol.prediction_m)
-    k_lin = 12 + all_cols.shape[2]
+    k0 = fixed_columns(ctx)
+    k_lin = k0 + all_cols.shape[2]
     coefficients_std = np.sqrt(np.abs(np.diag(cov[:8, :8]))) * COEFFICIENT_SCALE
-    lin_cov = cov[12 + b_cols.shape[2]:k_lin, 12 + b_cols.shape[2]:k_lin]
-    base_lin_cov = cov[12:12 + b_cols.shape[2], 12:12 + b_cols.shape[2]]
+    lin_cov = cov[k0 + b_cols.shape[2]:k_lin, k0 + b_cols.shape[2]:k_lin]
+    base_lin_cov = cov[k0:k0 + b_cols.shape[2], k0:k0 + b_cols.shape[2]]
     lin_std = np.sqrt(np.abs(np.diag(lin_cov))) if lin.size else np.zeros(0)
     if nl.size:
         nl_std = np.sqrt(np.abs(np.diag(cov[k_lin:, k_lin:])))
@@ -278,7 +282,7 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     physical_std = _physical_std(effect, nl, nl_std, lin, lin_cov)
     resid = (ctx.y_m - sol.prediction_m)[ctx.mask]
     rss = float(np.sum(resid ** 2))  # from the prediction itself: immune to an ill-conditioned solve
-    b_val = bic(rss, sol.n_obs, NOMINAL_PARAMS + k_base + k_eff)
+    b_val = bic(rss, sol.n_obs, nominal_params(ctx) + k_base + k_eff)
     ref = reference_bic if reference_bic is not None else nominal_solution(ctx)[1]
     eff_off = off
     eff_cols = cols
@@ -296,24 +300,18 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
 
 def parameter_covariance(ctx: FitContext, cols: np.ndarray, nl_sensitivity: np.ndarray,
                          prediction_m: np.ndarray) -> np.ndarray:
-    """Covariance of ``[dr (8, scaled), DC (4), linear gains (k), nonlinear (q)]`` of a fit about ``ctx``.
+    """Covariance of ``[dr (8, scaled), DC (4), start (8), linear gains (k), nonlinear (q)]`` of a fit about
+    ``ctx``.
 
-    The design is the fit's own linearization (the coefficient sensitivity ``J``, the DC columns, the
+    The design is the fit's own linearization (the coefficient sensitivity ``J``, the DC and start columns, the
     effect's columns and ``nl_sensitivity``, the output's derivative in each nonlinear parameter) and the
     residual is the fit's; :func:`~rotor_estimator.diagnosis.fitting.spectral_covariance` makes it honest
     when the residual is not white (a model that leaves a 1X or impact-shaped misfit).
     """
     rows = ctx.mask
-    design = np.concatenate([_stack([ctx.jacobian, _dc_columns(ctx.t_s.size), cols], ctx.t_s.size),
+    design = np.concatenate([_stack([ctx.jacobian, nuisance_columns(ctx.start_columns_m), cols], ctx.t_s.size),
                              nl_sensitivity], axis=2)[rows]
     return spectral_covariance(design, (ctx.y_m - prediction_m)[rows], correlation_segment(ctx))
-
-
-def _dc_columns(n: int) -> np.ndarray:
-    dc = np.zeros((n, 4, 4))
-    for c in range(4):
-        dc[:, c, c] = 1.0
-    return dc
 
 
 def _nl_sensitivities(ctx: FitContext, effect: Effect, nl: np.ndarray, base, fixed_base, base_effects,
@@ -360,12 +358,12 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
         b_off, b_cols, o, c = _compose(c2, effect, x[8:], [(b.effect, b.nl) for b in base],
                                        *_parts(c2, effect, x[8:], base))
         off = _sum([b_off, o])
-        x_cols = _stack([b_cols, c], n)
+        x_cols = _stack([c2.start_columns_m, b_cols, c], n)  # the start transient at these coefficients too
         target = c2.y_m - c2.y_nom_m - (0.0 if off is None else off)
         # a structural effect's offset is its model's output minus the rigid nominal's: with a diverging nominal
         # the two cancel to rounding noise (a "fit" below the noise floor was seen), so that point is a wall too
         if not (np.all(np.abs(target[rows]) < _DIVERGED_M) and np.all(np.abs(c2.y_nom_m[rows]) < _DIVERGED_M)) \
-                or (x_cols.shape[2] and not np.all(np.isfinite(x_cols[rows]))):
+                or not np.all(np.isfinite(x_cols[rows])):
             return _UNSTABLE * RESIDUAL_SCALE  # an unstable model at this trial point: a large finite misfit
         b_vec = target[rows]
         b_vec = (b_vec - b_vec.mean(axis=0)).ravel()
@@ -504,11 +502,12 @@ def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 
     from rotor_estimator.diagnosis.context import fit_nominal
 
     res = fit_nominal(ctx.rig, ctx.mats, ctx.t_s, ctx.y_m, ctx.mask, ctx.shaft, ctx.schedule, ctx.known_smooth_n,
-                      ctx.known_step_n, ctx.period_s, [coefficients], max_nfev=polish_nfev)
+                      ctx.known_step_n, ctx.period_s, [coefficients], max_nfev=polish_nfev,
+                      start_transient=ctx.start_transient)
     if res is None:
         return float("inf"), np.asarray(coefficients, float)
     rss = float(np.sum(res.fun ** 2)) / RESIDUAL_SCALE ** 2
-    return bic(rss, res.fun.size, NOMINAL_PARAMS), res.x * COEFFICIENT_SCALE
+    return bic(rss, res.fun.size, nominal_params(ctx)), res.x * COEFFICIENT_SCALE
 
 
 def _with_reference(f: EffectFit, ref_bic: float) -> EffectFit:
