@@ -10,6 +10,7 @@ import numpy as np
 
 from rotor_estimator.diagnosis import models
 from rotor_estimator.diagnosis.effects.base import Effect
+from rotor_estimator.diagnosis.linsim import free_response
 
 
 FOUNDATIONS = ("separate", "common")
@@ -23,6 +24,10 @@ class PedestalFlexibility(Effect):
     ``foundation``: a separate mass under each bearing, or one common mass carrying both housings;
     ``probes``: fixed to ground (absolute shaft motion) or to the housings (shaft relative to the
     housing). The search fits every form (:meth:`variants`) and keeps the best; the report names it.
+
+    Its linear parameters are the housings' initial velocities and displacements: the rigid nominal's
+    start transient (:func:`~rotor_estimator.diagnosis.context.start_columns`) has no foundation mode, and
+    a record from rest rings in it (a 40 Hz foundation decays over the whole record).
     """
 
     foundation: str = "separate"
@@ -53,8 +58,12 @@ class PedestalFlexibility(Effect):
     description: ClassVar[str] = "foundation/pedestal flexibility: housing mass, spring and damper under each bearing"
     nl_names: ClassVar[tuple[str, ...]] = ("log10_frequency_hz", "log10_damping_ratio", "log10_mass_kg")
 
+    def _housings(self) -> int:
+        return models.HOUSING_MAPS[self.foundation].shape[1]
+
     def lin_names(self, ctx):
-        return ()
+        nh = self._housings()
+        return tuple(f"housing_start_{q}{i}" for q in ("velocity_m_s_", "displacement_m_") for i in range(nh))
 
     def nl_grid(self, ctx):
         return [np.array([np.log10(f), np.log10(0.05), np.log10(m)])
@@ -74,8 +83,12 @@ class PedestalFlexibility(Effect):
         return m, k, 2 * zeta * np.sqrt(k * m)
 
     def basis(self, ctx, nl):
-        y = self.carrier(ctx, nl).response(ctx.known_smooth_n, ctx.known_step_n)
-        return y - ctx.y_nom_m, np.zeros((ctx.t_s.size, 4, 0))
+        carrier = self.carrier(ctx, nl)
+        y = carrier.response(ctx.known_smooth_n, ctx.known_step_n)
+        build_a, b, c = carrier.response_model
+        start = free_response(build_a, b, c[:4], ctx.period_s, ctx.schedule,
+                              states=np.arange(8, 8 + 2 * self._housings()))
+        return y - ctx.y_nom_m, start
 
     def carrier(self, ctx, nl):
         """The context whose forces (a partner's unbalance, misalignment) act on the shaft on its pedestals."""
