@@ -40,8 +40,8 @@ def test_a_radial_hardening_under_gravity_is_the_radial_form_not_a_2x_force(firs
     """A radial cubic ``k3 |d|^2 d`` about the gravity sag (2X and DC from its quadratic part; a true gap of
     at least 1.3x the noise) is explained better by the radial form about a fitted static point than by the
     per-axis cubic or by free 2X forces (misalignment, 8 gains), and its k3 is recovered within 50 % and
-    within 3 reported std. (The std is not asserted small: k3 trades off against the static point, whose
-    product sets the quadratic part, and one such case reported 200 % for an estimate 13 % off.)"""
+    within 3 reported std. The std is not asserted small: k3 trades off against the static point, whose
+    product sets the quadratic part, and one such case reported 200 % for an estimate 13 % off."""
     case = _case({"kind": "single", "form": "bearing_cubic:radial_cubic"}, first_seed, "steady", min_gap=1.3)
     k3_true = case.label["effect_params"]["bearing_cubic"]["cubic_n_per_m3"]
     ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)

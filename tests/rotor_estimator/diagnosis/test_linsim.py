@@ -1,13 +1,14 @@
 # Copyright 2026 rotor_estimator developers
 # SPDX-License-Identifier: Apache-2.0
-"""The start transient's columns (diagnosis.linsim.free_response) against an independent matrix exponential."""
+"""linsim: the start transient's columns against an independent matrix exponential; the radial bearing forces."""
 import numpy as np
 from scipy.linalg import expm
 
 from rotor_estimator.core.config import load_rig_file
 from rotor_estimator.core.model import rotor_matrices
 from rotor_estimator.diagnosis import models
-from rotor_estimator.diagnosis.linsim import SpeedSchedule, free_response
+from rotor_estimator.diagnosis.effects.bearing_cubic import RadialBearingCubic
+from rotor_estimator.diagnosis.linsim import SpeedSchedule, _bearing_force, free_response
 
 
 def _rigid(speed_rad_s: float, n: int):
@@ -43,3 +44,25 @@ def test_free_response_decays_and_is_cut_to_zero_only_after_the_floor():
     tail = np.abs(cols[-2000:]).max(axis=(0, 1))
     assert np.all(tail <= 1e-6 * peak)
     assert np.all(peak > 0)
+
+
+def test_radial_bearing_force_matches_the_effects_own_and_has_no_value_or_tangent_at_the_static_point():
+    """The recursion's radial cubic (numba) equals the effect's vectorized one (the grid's first-order columns
+    use it), and, being the force less its value and tangent at the static point, it and its derivative
+    vanish there (central differences, against the size of the tangent it removed)."""
+    rng = np.random.default_rng(7)
+    static_um = np.array([3.0, -8.0])
+    effect = RadialBearingCubic()
+    z = rng.normal(size=(50, 4)) * 6e-6
+    out = np.empty(4)
+    for k in range(z.shape[0]):
+        _bearing_force(z, k, 0, np.ones(4), np.tile(static_um * 1e-6, 2), 1, out)
+        np.testing.assert_allclose(out, effect._force(z[k:k + 1], static_um)[0], rtol=1e-9, atol=1e-30)
+    h = 1e-9
+    tangent = float(np.sum((static_um * 1e-6) ** 2))
+    for j in range(4):
+        dz = np.zeros((2, 4))
+        dz[0, j], dz[1, j] = h, -h
+        f = effect._force(dz, static_um)
+        assert np.all(np.abs(f[0] - f[1]) / (2 * h) < 1e-5 * tangent)
+    assert np.all(np.abs(effect._force(np.zeros((1, 4)), static_um)) < 1e-12 * tangent * 1e-6)
