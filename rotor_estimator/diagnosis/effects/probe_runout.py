@@ -29,6 +29,12 @@ class ProbeRunout(Effect):
                      for cs in ("cos", "sin"))
 
     def basis(self, ctx, nl):
+        # a function of the shaft angle alone, which every context of a record shares: built once per track
+        # (read-only, so that no caller can change the shared copy); the joint refits ask for it ~10^3 times
+        key = ("probe_runout_columns", self.harmonics)
+        cached = ctx.shaft.__dict__.get(key)
+        if cached is not None and cached[0] is ctx.shaft.angle_rad:
+            return None, cached[1]
         n = ctx.t_s.size
         cols = np.zeros((n, 4, 8 * self.harmonics))
         i = 0
@@ -37,6 +43,8 @@ class ProbeRunout(Effect):
                 cols[:, c, i] = np.cos(h * ctx.shaft.angle_rad) * UNIT_RUNOUT_M
                 cols[:, c, i + 1] = np.sin(h * ctx.shaft.angle_rad) * UNIT_RUNOUT_M
                 i += 2
+        cols.flags.writeable = False
+        ctx.shaft.__dict__[key] = (ctx.shaft.angle_rad, cols)
         return None, cols
 
     def physical(self, nl, lin):
