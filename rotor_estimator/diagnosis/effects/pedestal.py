@@ -25,9 +25,11 @@ class PedestalFlexibility(Effect):
     ``probes``: fixed to ground (absolute shaft motion) or to the housings (shaft relative to the
     housing). The search fits every form (:meth:`variants`) and keeps the best; the report names it.
 
-    Its linear parameters are the housings' initial velocities and displacements: the rigid nominal's
-    start transient (:func:`~rotor_estimator.diagnosis.context.start_columns`) has no foundation mode, and
-    a record from rest rings in it (a 40 Hz foundation decays over the whole record).
+    In a record whose start transient is estimated (:attr:`.FitContext.start_transient`), its linear
+    parameters are the housings' initial velocities and displacements: the rigid nominal's start transient
+    (:func:`~rotor_estimator.diagnosis.context.start_columns`) has no foundation mode, and a record from
+    rest rings in it (a 40 Hz foundation decays over the whole record). A record that starts steady has
+    none (its housings start in the periodic state like the rotor).
     """
 
     foundation: str = "separate"
@@ -62,6 +64,8 @@ class PedestalFlexibility(Effect):
         return models.HOUSING_MAPS[self.foundation].shape[1]
 
     def lin_names(self, ctx):
+        if not ctx.start_transient:
+            return ()
         nh = self._housings()
         return tuple(f"housing_start_{q}{i}" for q in ("velocity_m_s_", "displacement_m_") for i in range(nh))
 
@@ -86,6 +90,8 @@ class PedestalFlexibility(Effect):
         carrier = self.carrier(ctx, nl)
         y = carrier.response(ctx.known_smooth_n, ctx.known_step_n)
         build_a, b, c = carrier.response_model
+        if not ctx.start_transient:
+            return y - ctx.y_nom_m, np.zeros((ctx.t_s.size, 4, 0))
         start = free_response(build_a, b, c[:4], ctx.period_s, ctx.schedule,
                               states=np.arange(8, 8 + 2 * self._housings()))
         return y - ctx.y_nom_m, start
