@@ -23,6 +23,12 @@ each of its 8 states enters as 8 more linear columns (:func:`.linsim.free_respon
 identification with an estimated initial state), instead of an unmodelled decay that the candidate
 effects compete to absorb. Otherwise the record is taken to start steady: an impact right after the
 start is a free response too, and an estimated initial state would absorb its scale.
+
+Every fit is a MAP fit under the rig file's coefficient prior (r0, sqrt(diag P0)) of the estimator
+configuration, the EKF's own initial belief (Eq. 16 of Miller & Howard), entered as 8 pseudo-observations
+(:class:`CoefficientPrior`). A record without an impact at one speed shows the coefficients only through
+its 1X response, which they can fit to any 1X misfit by moving 10-30x off (a 20x-stiff fit absorbing an
+unbalance was seen): the prior is what keeps them physical there; with an impact it is negligible.
 """
 from __future__ import annotations
 
@@ -84,6 +90,35 @@ def noise_std_from_spectrum(residual_m: np.ndarray, sample_rate_hz: float, low_h
     return np.sqrt(np.median(spec[band], axis=0) / np.log(2.0))  # median of chi2_2/2 is ln 2
 
 
+@dataclass(frozen=True)
+class CoefficientPrior:
+    """Gaussian prior on the 8 bearing coefficients (SI): ``mean`` r0 and ``std`` sqrt(diag P0) of the
+    estimator configuration. It enters a least-squares fit of the probe output as 8 pseudo-observations
+    ``noise_std_m (r - mean) / std``: the MAP estimate of a Gaussian output error of std ``noise_std_m``."""
+
+    mean: np.ndarray
+    std: np.ndarray
+    noise_std_m: float
+
+    def residual_m(self, coefficients: np.ndarray) -> np.ndarray:
+        """The 8 pseudo-observation residuals (m) at ``coefficients`` (SI)."""
+        return self.noise_std_m * (np.asarray(coefficients, float) - self.mean) / self.std
+
+    def penalty_m2(self, coefficients: np.ndarray) -> float:
+        """Their sum of squares (m^2): what the prior adds to a fit's residual sum of squares."""
+        return float(np.sum(self.residual_m(coefficients) ** 2))
+
+    def design_rows(self) -> np.ndarray:
+        """d residual / d (r / COEFFICIENT_SCALE): the diagonal (8, 8) block of the pseudo-observations."""
+        return np.diag(self.noise_std_m * COEFFICIENT_SCALE / self.std)
+
+
+def coefficient_prior(config: EstimatorConfig, noise_std_m: float) -> CoefficientPrior:
+    """The prior of the estimator configuration (r0, sqrt(diag P0)) at the record's noise level."""
+    return CoefficientPrior(mean=config.initial_coefficients.as_array(),
+                            std=config.initial_coefficient_std.as_array(), noise_std_m=float(noise_std_m))
+
+
 @dataclass
 class FitContext:
     """Everything a candidate effect needs: data, shaft track, nominal fit and its sensitivities."""
@@ -111,12 +146,17 @@ class FitContext:
     ekf_nis: np.ndarray                  # (N,)
     known_smooth_n: np.ndarray           # (N, 4) generalized imbalance force (known test masses)
     known_step_n: np.ndarray             # (N, 4) generalized impact force
-    prior_coefficients: np.ndarray       # (8,) r0 of the estimator configuration
+    prior: CoefficientPrior              # r0 and sqrt(diag P0) of the estimator configuration
     _cache: dict = field(default_factory=dict)
     #: The model forces are sent through by :meth:`response`: ``(build_a(speed) -> A, B, C)`` with the rigid
     #: model's generalized-force input (N, 4) and output rows (probe displacements, then velocities);
     #: ``None`` is the rigid nominal of Eq. 2. A structural effect (pedestal) sets it for its pair partner.
     response_model: tuple | None = None
+
+    @property
+    def prior_coefficients(self) -> np.ndarray:
+        """(8,) r0 of the estimator configuration."""
+        return self.prior.mean
 
     @cached_property
     def sample_rate_hz(self) -> float:
@@ -234,21 +274,25 @@ def with_coefficients(ctx: "FitContext", coefficients: np.ndarray) -> "FitContex
 
 def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np.ndarray, shaft: ShaftTrack,
                 schedule: SpeedSchedule, u_smooth: np.ndarray, u_step: np.ndarray, h_s: float, starts, *,
-                max_nfev: int, x_scale: float | None = None, start_transient: bool = False):
+                max_nfev: int, x_scale: float | None = None, start_transient: bool = False,
+                prior: CoefficientPrior | None = None):
     """The nominal output-error fit: Levenberg-Marquardt over the 8 coefficients of Eq. 2, re-simulated by
     :func:`simulate_nominal`, on the output error of ``rows`` with each channel's DC gap (and, with
     ``start_transient``, the start transient of :func:`start_columns`) projected out, in micrometres (so
-    that the LM tolerances mean something). Best of ``starts`` (N/m and N*s/m; non-finite or failing starts
+    that the LM tolerances mean something), with the ``prior``'s 8 pseudo-observations appended (MAP).
+    Best of ``starts`` (N/m and N*s/m; non-finite or failing starts
     are skipped); ``None`` when none converges. ``max_nfev`` counts Jacobians (9 evaluations each).
     ``x_scale``: scipy's (``None``, its default, or 1.0)."""
     def residual(p):
         r = p * COEFFICIENT_SCALE
         yn, _, _ = simulate_nominal(rig, mats, r, t_s, shaft, schedule, u_smooth, u_step, h_s)
         e = y_m - yn
+        extra = np.zeros(0) if prior is None else prior.residual_m(r)
         if not np.all(np.isfinite(e[rows])):
-            return np.full(int(rows.sum()) * 4, 1e3 * (float(np.sqrt(np.mean(y_m[rows] ** 2))) + 1e-12)) * 1e6
+            return np.full(int(rows.sum()) * 4 + extra.size,
+                           1e3 * (float(np.sqrt(np.mean(y_m[rows] ** 2))) + 1e-12)) * 1e6
         s = start_columns(mats, r, schedule, h_s, estimated=start_transient)
-        return (e - nuisance_fit(s, e, rows))[rows].ravel() * 1e6
+        return np.concatenate([(e - nuisance_fit(s, e, rows))[rows].ravel(), extra]) * 1e6
 
     best = None
     for r0 in starts:
@@ -321,9 +365,14 @@ def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConf
     r_ekf = est.coefficients.copy()
     lp = est.last_pass
 
-    # 2. output-error refinement (DC projected out)
+    # 2. output-error refinement (DC projected out), MAP under the coefficient prior at the noise level of
+    # the record's band above any rotor response (the fits' own noise estimate needs a fit first)
+    low = max(0.3 * (1 / h), 10 * float(np.mean(shaft.speed_rad_s)) / (2 * np.pi))
+    y_centred = y_clean[mask] - y_clean[mask].mean(axis=0)
+    prior = coefficient_prior(config, float(np.sqrt(np.mean(noise_std_from_spectrum(y_centred, 1 / h, low) ** 2))))
     best = fit_nominal(rig, mats, t, y_clean, mask, shaft, schedule, u_s, u_z, h,
-                       [r_ekf, config.initial_coefficients.as_array()], max_nfev=max_nfev, x_scale=1.0)
+                       [r_ekf, config.initial_coefficients.as_array()], max_nfev=max_nfev, x_scale=1.0,
+                       prior=prior)
     if best is None:
         raise InputError("the nominal output-error fit failed from both the EKF estimate and r0")
     r_hat = best.x * COEFFICIENT_SCALE
@@ -331,12 +380,11 @@ def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConf
     transient = start_transient_shows(mats, r_hat, y_clean, mask, recording.impact_force_n, y_nom, schedule, h)
     if transient:  # refitted with the start transient estimated (its decay had dragged the coefficients)
         again = fit_nominal(rig, mats, t, y_clean, mask, shaft, schedule, u_s, u_z, h, [r_hat, r_ekf],
-                            max_nfev=max_nfev, x_scale=1.0, start_transient=True)
+                            max_nfev=max_nfev, x_scale=1.0, start_transient=True, prior=prior)
         r_hat = r_hat if again is None else again.x * COEFFICIENT_SCALE
     y_nom, v_nom, z_nom, jac = _nominal_products(rig, mats, r_hat, t, shaft, schedule, u_s, u_z, h)
     s0 = start_columns(mats, r_hat, schedule, h, estimated=transient)
     e0 = y_clean - y_nom - nuisance_fit(s0, y_clean - y_nom, mask)
-    low = max(0.3 * (1 / h), 10 * float(np.mean(shaft.speed_rad_s)) / (2 * np.pi))
     sigma = noise_std_from_spectrum(e0[mask], 1 / h, low)
     return FitContext(
         rig=rig, mats=mats, t_s=t, y_m=y_clean, shaft=shaft, impact_force_n=recording.impact_force_n, mask=mask,
@@ -344,4 +392,4 @@ def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConf
         fit_rows=mask & (t < t_cut), test_rows=mask & (t >= t_cut), schedule=schedule, coefficients=r_hat,
         coefficients_ekf=r_ekf, y_nom_m=y_nom, v_nom_m_s=v_nom, z_nom_m=z_nom, jacobian=jac, noise_std_m=sigma,
         ekf_innovation_m=lp.innovation_m, ekf_innovation_std_m=lp.innovation_std_m, ekf_nis=lp.nis,
-        known_smooth_n=u_s, known_step_n=u_z, prior_coefficients=config.initial_coefficients.as_array())
+        known_smooth_n=u_s, known_step_n=u_z, prior=prior)

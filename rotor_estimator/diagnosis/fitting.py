@@ -12,7 +12,9 @@ probe, ``S`` the start transient's (the free response from each of the 8 initial
 parameters ``theta_nl`` the rest is linear and eliminated (Golub & Pereyra's variable
 projection); the nonlinear parameters are found by a grid then
 :func:`scipy.optimize.least_squares`. Evidence: the Bayesian information criterion
-``BIC = n ln(RSS/n) + k ln n`` of the Gaussian output error (smaller is better).
+``BIC = n ln(RSS/n) + k ln n`` of the Gaussian output error (smaller is better), where RSS includes
+the coefficient prior's 8 pseudo-observations (:class:`.context.CoefficientPrior`): every design carries
+them as 8 more rows on ``dr``, so each fit is a MAP fit and the criterion a penalized (log-posterior) one.
 """
 from __future__ import annotations
 
@@ -38,9 +40,10 @@ class LinearSolution:
     start_state: np.ndarray   # (0 or 8,) initial deviation from the periodic steady state
     theta: np.ndarray         # (k,) effect (and extra) linear parameters
     theta_cov: np.ndarray     # (k, k)
-    rss_m2: float
+    rss_m2: float             # of the data rows
     n_obs: int
     prediction_m: np.ndarray  # (N, 4) full model output incl. DC on all samples
+    prior_m2: float = 0.0     # the coefficient prior's sum of squares at the solution (added to rss_m2 in a BIC)
 
 
 def _design(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray:
@@ -51,30 +54,42 @@ def _design(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray:
     return np.concatenate(parts, axis=2)
 
 
+def prior_rows(ctx: FitContext, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The coefficient prior's 8 pseudo-observations on a design of ``k`` columns (``dr`` first): rows (8, k)
+    and target (8,) at the context's linearization point (m)."""
+    a = np.zeros((8, k))
+    a[:, :8] = ctx.prior.design_rows()
+    return a, -ctx.prior.residual_m(ctx.coefficients)
+
+
 def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | None,
                  rows: np.ndarray | None = None) -> LinearSolution:
-    """Least squares of ``y - y_nom - offset`` on ``[J, D, S, cols]`` over ``rows`` (default: ctx.mask)."""
+    """MAP least squares of ``y - y_nom - offset`` on ``[J, D, S, cols]`` over ``rows`` (default: ctx.mask),
+    with the coefficient prior's pseudo-observations (:func:`prior_rows`)."""
     rows = ctx.mask if rows is None else rows
     full = _design(ctx, cols)
     target = ctx.y_m - ctx.y_nom_m - (0.0 if offset is None else offset)
-    a = full[rows].reshape(-1, full.shape[2])
-    b = target[rows].ravel()
+    a_data = full[rows].reshape(-1, full.shape[2])
+    b_data = target[rows].ravel()
+    a_prior, b_prior = prior_rows(ctx, full.shape[2])
+    a = np.concatenate([a_data, a_prior])
+    b = np.concatenate([b_data, b_prior])
     norm = np.sqrt((a * a).sum(axis=0))
     norm[norm == 0] = 1.0
     an = a / norm
     ata_inv = np.linalg.pinv(an.T @ an, rcond=1e-12, hermitian=True)  # normal equations, columns unit-normed
     coef_n = ata_inv @ (an.T @ b)
     coef = coef_n / norm
-    resid = b - a @ coef
+    resid = b_data - a_data @ coef
     rss = float(resid @ resid)
-    n_obs, k_all = a.shape
+    n_obs, k_all = a_data.shape
     sigma2 = rss / max(n_obs - k_all, 1)
     cov = ata_inv * sigma2 / np.outer(norm, norm)
     pred = ctx.y_nom_m + (0.0 if offset is None else offset) + np.einsum("nck,k->nc", full, coef)
     k0 = fixed_columns(ctx)
     return LinearSolution(dr=coef[:8], dc_m=coef[8:12], start_state=coef[12:k0], theta=coef[k0:],
-                          theta_cov=cov[k0:, k0:], rss_m2=rss,
-                          n_obs=int(n_obs), prediction_m=pred)
+                          theta_cov=cov[k0:, k0:], rss_m2=rss, n_obs=int(n_obs), prediction_m=pred,
+                          prior_m2=ctx.prior.penalty_m2(ctx.coefficients + coef[:8] * COEFFICIENT_SCALE))
 
 
 #: Eigenvalues of the unit-column Gram matrix below this fraction of the largest are dropped by
@@ -103,26 +118,34 @@ def residual_after_fit(x: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class Projector:
-    """Orthogonal projection off the fixed columns ``[J, D, S, base]`` on ``rows`` (QR computed once)."""
+    """Orthogonal projection off the fixed columns ``[J, D, S, base]`` on ``rows`` and the coefficient prior's
+    8 pseudo-observation rows below them (:func:`prior_rows`; an effect's columns and offset are zero there),
+    QR computed once."""
 
     def __init__(self, ctx: FitContext, base_cols: np.ndarray | None, rows: np.ndarray) -> None:
         full = _design(ctx, base_cols)
-        a = full[rows].reshape(-1, full.shape[2])
+        a_prior, b_prior = prior_rows(ctx, full.shape[2])
+        a = np.concatenate([full[rows].reshape(-1, full.shape[2]), a_prior])
         norm = np.sqrt((a * a).sum(axis=0))
         norm[norm == 0] = 1.0
         self.q, _ = np.linalg.qr(a / norm)
         self.rows = rows
-        self.base_target = (ctx.y_m - ctx.y_nom_m)[rows].ravel()
+        self.base_target = np.concatenate([(ctx.y_m - ctx.y_nom_m)[rows].ravel(), b_prior])
 
     def _perp(self, v: np.ndarray) -> np.ndarray:
         return v - self.q @ (self.q.T @ v)
 
+    def _rows(self, v: np.ndarray) -> np.ndarray:
+        """(N, 4[, k]) on every sample -> the design's rows, zero on the prior's."""
+        flat = v[self.rows].reshape(-1, *v.shape[2:])
+        return np.concatenate([flat, np.zeros((8, *flat.shape[1:]))])
+
     def residual(self, offset: np.ndarray | None, cols: np.ndarray | None) -> np.ndarray:
         """Residual after eliminating the fixed and the effect's linear parameters."""
-        b = self.base_target if offset is None else self.base_target - offset[self.rows].ravel()
+        b = self.base_target if offset is None else self.base_target - self._rows(offset)
         b = self._perp(b)
         if cols is not None and cols.shape[2]:
-            b = residual_after_fit(self._perp(cols[self.rows].reshape(-1, cols.shape[2])), b)
+            b = residual_after_fit(self._perp(self._rows(cols)), b)
         return b
 
 
@@ -138,7 +161,8 @@ SPECTRUM_BLOCK_COLUMNS = 8
 SPECTRUM_CHUNK_LINES = 2048
 
 
-def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int) -> np.ndarray:
+def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int,
+                        prior_precision: np.ndarray | None = None) -> np.ndarray:
     """Covariance of least-squares parameters when the residual is not white (a sandwich estimate).
 
     ``design`` (T, C, p) and ``residual`` (T, C): T consecutive samples of C channels. The residual is
@@ -148,6 +172,8 @@ def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int) 
     power in their own band (a 1X parameter by the 1X misfit). With a white residual it reduces to
     ``sigma^2 B^-1``. Unlike a Newey-West sum over lags of the scores, it is not biased low by the
     fitted sinusoids (a long lag window on 1X-modulated scores halved the std of a fit with 16 columns).
+    ``prior_precision`` (p,): the diagonal a Gaussian prior's pseudo-observations add to ``B`` (a MAP fit's
+    bread ``(A^T A + Lambda)^-1``; the prior adds information, not residual power).
     """
     from scipy.signal import csd
 
@@ -155,7 +181,10 @@ def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int) 
     a = design.reshape(-1, p)
     norm = np.sqrt((a * a).sum(axis=0))
     norm[norm == 0] = 1.0
-    bread = np.linalg.pinv((a / norm).T @ (a / norm), rcond=1e-12, hermitian=True) / np.outer(norm, norm)
+    gram = (a / norm).T @ (a / norm)
+    if prior_precision is not None:
+        gram = gram + np.diag(np.asarray(prior_precision, float) / norm ** 2)
+    bread = np.linalg.pinv(gram, rcond=1e-12, hermitian=True) / np.outer(norm, norm)
     seg = int(min(segment, t_n))
     # Welch's S is a cosine series of lags under ``seg``, so a DFT of T + seg points sums the quadratic form without
     # circular wrap-around (a 2T-point one costs three times the memory and time for nothing)

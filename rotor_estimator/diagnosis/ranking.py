@@ -210,7 +210,7 @@ def predicts_held_out(candidate_rms_m: float, reference_rms_m: float) -> bool:
 def nominal_solution(ctx: FitContext) -> tuple[LinearSolution, float, float]:
     """The nominal model's (re-)solution, its BIC and held-out RMS."""
     sol = solve_linear(ctx, None, None)
-    return sol, bic(sol.rss_m2, sol.n_obs, nominal_params(ctx)), held_out_rms(ctx, None, None)
+    return sol, bic(sol.rss_m2 + sol.prior_m2, sol.n_obs, nominal_params(ctx)), held_out_rms(ctx, None, None)
 
 
 def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = (), *,
@@ -282,7 +282,7 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     physical_std = _physical_std(effect, nl, nl_std, lin, lin_cov)
     resid = (ctx.y_m - sol.prediction_m)[ctx.mask]
     rss = float(np.sum(resid ** 2))  # from the prediction itself: immune to an ill-conditioned solve
-    b_val = bic(rss, sol.n_obs, nominal_params(ctx) + k_base + k_eff)
+    b_val = bic(rss + sol.prior_m2, sol.n_obs, nominal_params(ctx) + k_base + k_eff)
     ref = reference_bic if reference_bic is not None else nominal_solution(ctx)[1]
     eff_off = off
     eff_cols = cols
@@ -311,7 +311,9 @@ def parameter_covariance(ctx: FitContext, cols: np.ndarray, nl_sensitivity: np.n
     rows = ctx.mask
     design = np.concatenate([_stack([ctx.jacobian, nuisance_columns(ctx.start_columns_m), cols], ctx.t_s.size),
                              nl_sensitivity], axis=2)[rows]
-    return spectral_covariance(design, (ctx.y_m - prediction_m)[rows], correlation_segment(ctx))
+    precision = np.zeros(design.shape[2])
+    precision[:8] = np.diag(ctx.prior.design_rows()) ** 2  # the coefficient prior (MAP): information on dr
+    return spectral_covariance(design, (ctx.y_m - prediction_m)[rows], correlation_segment(ctx), precision)
 
 
 def _nl_sensitivities(ctx: FitContext, effect: Effect, nl: np.ndarray, base, fixed_base, base_effects,
@@ -354,6 +356,10 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     rows = ctx.mask
 
     def fun(x):
+        if not _stable(ctx, x[:8] * COEFFICIENT_SCALE):
+            # a wall: the periodic re-simulation exists for an unstable rotor too, and a record without an
+            # impact cannot tell them apart by their 1X (the MAP point of such a record was seen unstable)
+            return _UNSTABLE * RESIDUAL_SCALE
         c2 = with_coefficients(ctx, x[:8] * COEFFICIENT_SCALE)
         b_off, b_cols, o, c = _compose(c2, effect, x[8:], [(b.effect, b.nl) for b in base],
                                        *_parts(c2, effect, x[8:], base))
@@ -371,12 +377,15 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
             xc = x_cols[rows]
             xc = (xc - xc.mean(axis=0)).reshape(-1, x_cols.shape[2])
             b_vec = residual_after_fit(xc, b_vec)
-        return b_vec * RESIDUAL_SCALE
+        # the coefficient prior's pseudo-observations (MAP), as in every other fit
+        return np.concatenate([b_vec, ctx.prior.residual_m(x[:8] * COEFFICIENT_SCALE)]) * RESIDUAL_SCALE
 
     scale = float(np.sqrt(np.mean(ctx.y_m[rows] ** 2))) + 1e-12
-    _UNSTABLE = np.full(int(rows.sum()) * 4, 10.0 * scale)
+    _UNSTABLE = np.full(int(rows.sum()) * 4 + 8, 10.0 * scale)
     _DIVERGED_M = 1e3 * scale  # a trial model whose output grows 1000x the data's is unstable, not a fit
-    lo = np.concatenate([np.full(8, -np.inf), effect.nl_bounds(ctx)[0]])
+    # direct damping cannot be negative in a passive bearing (the MAP point of a record without an impact,
+    # where only the prior holds the coefficients, was seen at cxx = -350 N s/m)
+    lo = np.concatenate([np.where(_DIRECT_DAMPING, 0.0, -np.inf), effect.nl_bounds(ctx)[0]])
     hi = np.concatenate([np.full(8, np.inf), effect.nl_bounds(ctx)[1]])
     best = fit
     starts = [(r, fit.nl) for r in (fit.coefficients, *extra_starts)]
@@ -386,7 +395,7 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     results = []
     for r_start, nl_start in starts:
         x0 = np.concatenate([np.asarray(r_start, float) / COEFFICIENT_SCALE, nl_start])
-        x0 = np.clip(x0, lo + 1e-9, hi - 1e-9) if n_nl else x0
+        x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
         try:
             results.append(least_squares(fun, x0, bounds=(lo, hi), diff_step=1e-4, max_nfev=max_nfev,
                                          x_scale=1.0))
@@ -419,6 +428,10 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     except (ValueError, np.linalg.LinAlgError):
         return best
     return new if new.bic < best.bic else best
+
+
+#: The direct damping terms (cxx, cyy) among the 8 coefficients, bounded below by 0 in the joint refits.
+_DIRECT_DAMPING = np.array([False] * 4 + [True, False, False, True])
 
 
 def _stable(ctx: FitContext, coefficients: np.ndarray) -> bool:
@@ -503,11 +516,11 @@ def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 
 
     res = fit_nominal(ctx.rig, ctx.mats, ctx.t_s, ctx.y_m, ctx.mask, ctx.shaft, ctx.schedule, ctx.known_smooth_n,
                       ctx.known_step_n, ctx.period_s, [coefficients], max_nfev=polish_nfev,
-                      start_transient=ctx.start_transient)
+                      start_transient=ctx.start_transient, prior=ctx.prior)
     if res is None:
         return float("inf"), np.asarray(coefficients, float)
-    rss = float(np.sum(res.fun ** 2)) / RESIDUAL_SCALE ** 2
-    return bic(rss, res.fun.size, nominal_params(ctx)), res.x * COEFFICIENT_SCALE
+    rss = float(np.sum(res.fun ** 2)) / RESIDUAL_SCALE ** 2  # data and prior rows (MAP)
+    return bic(rss, res.fun.size - 8, nominal_params(ctx)), res.x * COEFFICIENT_SCALE
 
 
 def _with_reference(f: EffectFit, ref_bic: float) -> EffectFit:

@@ -78,3 +78,79 @@ def test_projection_residual_equals_the_svd_least_squares_residual_and_is_orthog
     assert np.max(np.abs(got - reference)) < 1e-9 * np.max(np.abs(b))
     unit = x / np.linalg.norm(x, axis=0)
     assert np.max(np.abs(unit.T @ got)) < 1e-8 * np.linalg.norm(b)
+
+
+def _stub_context(rng, prior_std, t_n: int = 400):
+    """The attributes the linear kernels read: a random coefficient sensitivity, no start transient, the
+    coefficient prior at the record's noise level."""
+    from types import SimpleNamespace
+
+    from rotor_estimator.diagnosis.context import CoefficientPrior
+
+    jac = rng.standard_normal((t_n, 4, 8)) * 1e-6
+    coefficients = np.array([4e5, 1e5, -1e5, 5e5, 900.0, 10.0, -10.0, 800.0])
+    prior = CoefficientPrior(mean=np.array([3e5, 0.0, 0.0, 3e5, 1000.0, 0.0, 0.0, 1000.0]),
+                             std=np.asarray(prior_std, float), noise_std_m=1e-6)
+    return SimpleNamespace(jacobian=jac, start_columns_m=np.zeros((t_n, 4, 0)), y_nom_m=np.zeros((t_n, 4)),
+                           y_m=rng.standard_normal((t_n, 4)) * 3e-6, mask=np.ones(t_n, bool),
+                           coefficients=coefficients, prior=prior)
+
+
+def test_the_linear_solve_is_the_map_estimate_under_the_coefficient_prior():
+    """The coefficient correction of solve_linear equals the closed-form MAP estimate
+    (A^T A + L^T L)^-1 (A^T b + L^T l) of the data rows and the prior's 8 pseudo-observations (an
+    independent normal-equation solve), its prior_m2 is the prior's penalty there, and the Projector (the
+    nonlinear searches' path) leaves the same penalized sum of squares."""
+    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, nuisance_columns
+    from rotor_estimator.diagnosis.fitting import Projector, solve_linear
+
+    rng = np.random.default_rng(11)
+    ctx = _stub_context(rng, [3e5] * 4 + [1e3] * 4)
+    cols = rng.standard_normal((400, 4, 3)) * 1e-6
+    sol = solve_linear(ctx, None, cols)
+    a = np.concatenate([ctx.jacobian, nuisance_columns(ctx.start_columns_m), cols], axis=2).reshape(-1, 15)
+    b = ctx.y_m.ravel()
+    lam = np.zeros((15, 15))
+    w = ctx.prior.noise_std_m * COEFFICIENT_SCALE / ctx.prior.std  # d pseudo-observation / d dr
+    lam[:8, :8] = np.diag(w ** 2)
+    target = np.zeros(15)
+    target[:8] = w ** 2 * (ctx.prior.mean - ctx.coefficients) / COEFFICIENT_SCALE
+    x = np.linalg.solve(a.T @ a + lam, a.T @ b + target)
+    np.testing.assert_allclose(sol.dr, x[:8], rtol=1e-6, atol=1e-9 * np.max(np.abs(x[:8])))
+    after = ctx.coefficients + x[:8] * COEFFICIENT_SCALE
+    assert sol.prior_m2 == pytest.approx(ctx.prior.penalty_m2(after), rel=1e-6)
+    projected = Projector(ctx, None, ctx.mask).residual(None, cols)
+    assert float(projected @ projected) == pytest.approx(sol.rss_m2 + sol.prior_m2, rel=1e-6)
+
+
+def test_a_tight_prior_holds_the_coefficients_and_a_broad_one_leaves_the_least_squares_fit():
+    """Bounds of the MAP estimate: with a prior std of 1 (N/m, N s/m) the coefficients after the solve stay
+    within that std of r0 (the data would move them by ~10^5); with a std 1e6 times the coefficients the
+    correction is the plain least-squares one (within 1e-6 relative)."""
+    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, nuisance_columns
+    from rotor_estimator.diagnosis.fitting import solve_linear
+
+    rng = np.random.default_rng(12)
+    tight = _stub_context(rng, np.full(8, 1.0))
+    sol = solve_linear(tight, None, None)
+    after = tight.coefficients + sol.dr * COEFFICIENT_SCALE
+    assert np.all(np.abs(after - tight.prior.mean) < tight.prior.std), after - tight.prior.mean
+    broad = _stub_context(np.random.default_rng(12), np.full(8, 1e12))
+    sol = solve_linear(broad, None, None)
+    a = np.concatenate([broad.jacobian, nuisance_columns(broad.start_columns_m)], axis=2).reshape(-1, 12)
+    x, *_ = np.linalg.lstsq(a, broad.y_m.ravel(), rcond=None)
+    np.testing.assert_allclose(sol.dr, x[:8], rtol=1e-6)
+
+
+def test_a_prior_precision_shrinks_the_std_of_its_parameter_only():
+    """The sandwich of a MAP fit: an infinite-like prior precision on one parameter drives its std to ~0
+    (below 1 % of the one without it), a zero precision leaves the covariance unchanged."""
+    rng = np.random.default_rng(4)
+    a = _design()
+    _, res = _fit(a, rng.standard_normal((3000, 2)) * 2e-6)
+    free = spectral_covariance(a, res, 240)
+    same = spectral_covariance(a, res, 240, np.zeros(5))
+    np.testing.assert_allclose(same, free)
+    held = spectral_covariance(a, res, 240, np.array([1e6, 0, 0, 0, 0]))
+    assert np.sqrt(held[0, 0]) < 0.01 * np.sqrt(free[0, 0])
+    np.testing.assert_allclose(np.diag(held)[2:4], np.diag(free)[2:4], rtol=1e-6)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import warnings
 
+import numpy as np
 import pytest
 
 from rotor_estimator.bench import independent
@@ -85,3 +86,23 @@ def test_a_common_foundation_from_rest_is_recovered_through_its_housing_start_tr
     assert fit.delta_bic > 30 and fit.lin.size == 4
     assert abs(fit.physical["pedestal_frequency_hz"] / truth["frequency_hz"] - 1) < 0.1, (fit.physical, truth)
     assert abs(fit.physical["pedestal_mass_kg"] / truth["mass_kg"] - 1) < 0.3, (fit.physical, truth)
+
+
+@pytest.mark.slow
+def test_an_unbalance_without_impact_is_unbalance_not_a_probe_map_under_the_coefficient_prior():
+    """An arbitrary-plane unbalance at one speed without an impact (true gap >= 3x): the 1X is all the record
+    says, and 8 coefficients plus 8 probe-map gains fit any 1X. Under the rig file's coefficient prior (MAP)
+    and with unstable coefficients walled off, the 4 unbalance parameters explain it at coefficients near
+    r0 and beat the probe map (before the prior, the nominal fit dragged kxx 20x to hold the 1X and the
+    unbalance, refitted from there, lost to the probe map by ~330 in delta BIC)."""
+    from rotor_estimator.diagnosis.effects import ProbeGainOrientation, ResidualUnbalance
+
+    case = _case({"kind": "single", "form": "residual_unbalance:arbitrary_plane", "impact": False}, 9090, "steady",
+                 min_gap=3.0)
+    ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)
+    _, bic0, _ = nominal_solution(ctx)
+    unbalance = _refined(ctx, ResidualUnbalance(), bic0)
+    probe_map = _refined(ctx, ProbeGainOrientation(), bic0)
+    assert unbalance.delta_bic > probe_map.delta_bic, (unbalance.delta_bic, probe_map.delta_bic)
+    within = np.abs(unbalance.coefficients - ctx.prior.mean) / ctx.prior.std
+    assert np.all(within < 3), within
