@@ -72,13 +72,13 @@ def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | 
     a_data = full[rows].reshape(-1, full.shape[2])
     b_data = target[rows].ravel()
     a_prior, b_prior = prior_rows(ctx, full.shape[2])
-    a = np.concatenate([a_data, a_prior])
-    b = np.concatenate([b_data, b_prior])
-    norm = np.sqrt((a * a).sum(axis=0))
+    # normal equations of the data rows plus the prior's, columns unit-normed (summed, not stacked: a stacked
+    # copy of a long record's design is ~100 MB)
+    norm = np.sqrt(np.einsum("ij,ij->j", a_data, a_data) + np.einsum("ij,ij->j", a_prior, a_prior))
     norm[norm == 0] = 1.0
-    an = a / norm
-    ata_inv = np.linalg.pinv(an.T @ an, rcond=1e-12, hermitian=True)  # normal equations, columns unit-normed
-    coef_n = ata_inv @ (an.T @ b)
+    gram = (a_data.T @ a_data + a_prior.T @ a_prior) / np.outer(norm, norm)
+    ata_inv = np.linalg.pinv(gram, rcond=1e-12, hermitian=True)
+    coef_n = ata_inv @ ((a_data.T @ b_data + a_prior.T @ b_prior) / norm)
     coef = coef_n / norm
     resid = b_data - a_data @ coef
     rss = float(resid @ resid)
@@ -125,10 +125,15 @@ class Projector:
     def __init__(self, ctx: FitContext, base_cols: np.ndarray | None, rows: np.ndarray) -> None:
         full = _design(ctx, base_cols)
         a_prior, b_prior = prior_rows(ctx, full.shape[2])
-        a = np.concatenate([full[rows].reshape(-1, full.shape[2]), a_prior])
-        norm = np.sqrt((a * a).sum(axis=0))
+        self.index = np.flatnonzero(rows)
+        m = self.index.size * 4
+        a = np.empty((m + 8, full.shape[2]))  # filled in place: one copy of the design, as without the prior
+        np.take(full, self.index, axis=0, out=a[:m].reshape(self.index.size, 4, full.shape[2]))
+        a[m:] = a_prior
+        norm = np.sqrt(np.einsum("ij,ij->j", a, a))
         norm[norm == 0] = 1.0
-        self.q, _ = np.linalg.qr(a / norm)
+        a /= norm
+        self.q, _ = np.linalg.qr(a)
         self.rows = rows
         self.base_target = np.concatenate([(ctx.y_m - ctx.y_nom_m)[rows].ravel(), b_prior])
 
@@ -137,8 +142,10 @@ class Projector:
 
     def _rows(self, v: np.ndarray) -> np.ndarray:
         """(N, 4[, k]) on every sample -> the design's rows, zero on the prior's."""
-        flat = v[self.rows].reshape(-1, *v.shape[2:])
-        return np.concatenate([flat, np.zeros((8, *flat.shape[1:]))])
+        m = self.index.size * 4
+        out = np.zeros((m + 8, *v.shape[2:]))
+        np.take(v, self.index, axis=0, out=out[:m].reshape(self.index.size, *v.shape[1:]))  # no second copy
+        return out
 
     def residual(self, offset: np.ndarray | None, cols: np.ndarray | None) -> np.ndarray:
         """Residual after eliminating the fixed and the effect's linear parameters."""
