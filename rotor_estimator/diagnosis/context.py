@@ -211,6 +211,8 @@ def nuisance_columns(start_columns_m: np.ndarray) -> np.ndarray:
 
 def nuisance_fit(start_columns_m: np.ndarray, error_m: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """Least-squares DC gap plus start transient of ``error_m`` (N, 4) on ``rows``, evaluated on every sample."""
+    if start_columns_m.shape[2] == 0:  # the DC gaps alone: each channel's mean (the same solution, no SVD)
+        return np.broadcast_to(error_m[rows].mean(axis=0), error_m.shape).copy()
     cols = nuisance_columns(start_columns_m)
     a = cols[rows].reshape(-1, cols.shape[2])
     norm = np.sqrt((a * a).sum(axis=0))

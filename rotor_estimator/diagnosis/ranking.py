@@ -116,6 +116,12 @@ class EffectFit:
     effect: Effect | None = field(repr=False, default=None)
     #: (8,) standard deviation of :attr:`coefficients` (SI), sandwich (:func:`parameter_covariance`)
     coefficients_std: np.ndarray = field(repr=False, default_factory=lambda: np.full(8, np.nan))
+    #: Local optima of the joint refits (:func:`refine`): ``(coefficients SI (8,), penalized RSS m^2, data rows)``
+    #: of every start, on one exact (not linearized) misfit, so comparable; see :func:`coefficients_std_with_basins`
+    basins: tuple[tuple[np.ndarray, float, int], ...] = field(repr=False, default=())
+    #: (8, 8) covariance of :attr:`coefficients` (SI): the local sandwich one, widened along the directions the
+    #: likelihood profile finds flatter than it (:func:`profiled_coefficient_cov`) for a verdict's fit
+    coefficients_cov: np.ndarray = field(repr=False, default_factory=lambda: np.full((8, 8), np.nan))
 
     def summary(self) -> dict:
         return {"name": self.name, "delta_bic": round(self.delta_bic, 2), "bic": round(self.bic, 2),
@@ -295,7 +301,8 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
                      residual_rms_m=np.sqrt(np.mean(resid ** 2, axis=0)), coefficients=coefficients_after(ctx, sol),
                      prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect,
                      base_lin=sol.theta[:b_cols.shape[2]], base_lin_cov=base_lin_cov, lin_cov=lin_cov,
-                     coefficients_std=coefficients_std)
+                     coefficients_std=coefficients_std,
+                     coefficients_cov=cov[:8, :8] * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE))
 
 
 def parameter_covariance(ctx: FitContext, cols: np.ndarray, nl_sensitivity: np.ndarray,
@@ -338,21 +345,13 @@ def _nl_sensitivities(ctx: FitContext, effect: Effect, nl: np.ndarray, base, fix
     return np.where(np.isfinite(out), out, 0.0)
 
 
-def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
-           reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = (),
-           nl_starts: tuple[np.ndarray, ...] = (), start_pairs: tuple[tuple[np.ndarray, np.ndarray], ...] = (),
-           polish_nfev: int = 30) -> EffectFit:
-    """Joint nonlinear refit of the 8 bearing coefficients with the effect (and the ``base`` effects).
-
-    The first pass linearizes the nominal model about its own fit, which a large effect
-    may have dragged far off; here the coefficients (and the effect's nonlinear parameters)
-    are free in :func:`scipy.optimize.least_squares`, the linear ones projected out, and
-    the fit is kept only when its BIC improves.
-    """
-    from rotor_estimator.diagnosis.context import recentered, with_coefficients
+def joint_misfit(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()):
+    """``(fun, lo, hi)``: the exact (re-simulated, not linearized) residual of the 8 coefficients (scaled) and
+    the effect's nonlinear parameters, the linear ones projected out, with the coefficient prior's rows (MAP),
+    in micrometres; and its bounds. Shared by :func:`refine` and :func:`profiled_coefficient_cov`."""
+    from rotor_estimator.diagnosis.context import with_coefficients
 
     n = ctx.t_s.size
-    n_nl = len(effect.nl_names)
     rows = ctx.mask
 
     def fun(x):
@@ -387,6 +386,24 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     # where only the prior holds the coefficients, was seen at cxx = -350 N s/m)
     lo = np.concatenate([np.where(_DIRECT_DAMPING, 0.0, -np.inf), effect.nl_bounds(ctx)[0]])
     hi = np.concatenate([np.full(8, np.inf), effect.nl_bounds(ctx)[1]])
+    return fun, lo, hi
+
+
+def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
+           reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = (),
+           nl_starts: tuple[np.ndarray, ...] = (), start_pairs: tuple[tuple[np.ndarray, np.ndarray], ...] = (),
+           polish_nfev: int = 30) -> EffectFit:
+    """Joint nonlinear refit of the 8 bearing coefficients with the effect (and the ``base`` effects).
+
+    The first pass linearizes the nominal model about its own fit, which a large effect
+    may have dragged far off; here the coefficients (and the effect's nonlinear parameters)
+    are free in :func:`scipy.optimize.least_squares`, the linear ones projected out, and
+    the fit is kept only when its BIC improves.
+    """
+    from rotor_estimator.diagnosis.context import recentered
+
+    n_nl = len(effect.nl_names)
+    fun, lo, hi = joint_misfit(ctx, effect, base)
     best = fit
     starts = [(r, fit.nl) for r in (fit.coefficients, *extra_starts)]
     starts += [(fit.coefficients, np.asarray(p, float)) for p in nl_starts]
@@ -403,6 +420,7 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
             continue
     if not results:
         return best
+    explored = list(results)
     results.sort(key=lambda r: r.cost)
     if len(starts) > 1 and polish_nfev > 0:  # the two best starts continued (a short run may not rank basins)
         polished = []
@@ -416,18 +434,155 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
             except (ValueError, np.linalg.LinAlgError):
                 polished.append(r)
         results = sorted(polished, key=lambda r: r.cost)
+        explored += polished
     res = results[0]
+    basins = fit.basins + tuple((r.x[:8] * COEFFICIENT_SCALE, 2.0 * float(r.cost) / RESIDUAL_SCALE ** 2,
+                                 int(r.fun.size) - 8) for r in explored
+                                if np.isfinite(r.cost) and _stable(ctx, r.x[:8] * COEFFICIENT_SCALE))
+    from dataclasses import replace
+
     if not _stable(ctx, res.x[:8] * COEFFICIENT_SCALE):
         # the rigid nominal with these coefficients diverges (possible with a pedestal or a hardening in the
         # loop): linearizing about it gives meaningless columns and residuals, so the refit is not used
-        return best
+        return replace(best, basins=basins)
     try:
         ctx_new = recentered(ctx, res.x[:8] * COEFFICIENT_SCALE)
         new = fit_effect(ctx_new, effect, tuple(_refit_base(ctx_new, b) for b in base),
                          reference_bic=reference_bic, nl0=res.x[8:] if n_nl else None, max_nfev=5)
     except (ValueError, np.linalg.LinAlgError):
-        return best
-    return new if new.bic < best.bic else best
+        return replace(best, basins=basins)
+    return replace(new if new.bic < best.bic else best, basins=basins)
+
+
+#: Directions of largest local coefficient variance whose likelihood profile is traced (a record without an
+#: impact showed two weak combinations, kxx - kyx and kyy - kxy).
+PROFILE_DIRECTIONS = 2
+#: Steps along a direction, in its local standard deviations: a quadratic likelihood crosses the 95 % level at
+#: 1.96, so the first step already brackets it when the local approximation holds.
+PROFILE_STEPS = (4.0, 16.0, 64.0)
+#: Function evaluations of each constrained refit on the profile (started from the optimum, shifted).
+PROFILE_NFEV = 8
+#: 95 % quantile of chi-square with one degree of freedom: the profile's likelihood-ratio level.
+PROFILE_CHI2 = 3.841
+
+
+def profiled_coefficient_cov(ctx: FitContext, effect: Effect, fit: EffectFit,
+                             base: tuple[EffectFit, ...] = ()) -> np.ndarray:
+    """The fit's (8, 8) coefficient covariance (SI), widened where the likelihood is flatter than its curvature.
+
+    Profile likelihood (Venzon & Moolgavkar 1988; Raue et al. 2009 for practical non-identifiability): along
+    each of the :data:`PROFILE_DIRECTIONS` directions of largest local variance, the coefficients are
+    stepped to ``t`` (:data:`PROFILE_STEPS` local stds, both signs) and every other parameter refitted
+    (:func:`joint_misfit`); the 95 % profile limit is where the misfit rises by :data:`PROFILE_CHI2` noise
+    variances (interpolated in its square root). The variance along that direction becomes the larger of the
+    local one and ``(mean |limit| / 1.96)^2``. On a quadratic likelihood nothing changes; a curved valley of
+    coefficient sets that fit a 1X-only record equally well (seen: 40 % off at a local std of 2 %) is
+    widened to its extent (or to the largest step when the profile never rises that far).
+    """
+    cov_si = np.asarray(fit.coefficients_cov, float)
+    if not np.all(np.isfinite(cov_si)):
+        return cov_si
+    fun, lo, hi = joint_misfit(ctx, effect, base)
+    x_hat = np.concatenate([fit.coefficients / COEFFICIENT_SCALE, fit.nl])
+    f0 = fun(x_hat)
+    n = f0.size - 8
+    rss0 = float(f0 @ f0)
+    sigma2 = rss0 / max(n, 1)
+    cov = cov_si / np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
+    w, v = np.linalg.eigh(cov)
+    out = cov.copy()
+    z_limit = float(np.sqrt(PROFILE_CHI2))
+    for j in np.argsort(w)[::-1][:PROFILE_DIRECTIONS]:
+        d, sd = v[:, j], float(np.sqrt(max(w[j], 0.0)))
+        if sd == 0.0:
+            continue
+        others = np.linalg.svd(np.eye(8) - np.outer(d, d))[0][:, :7]  # orthonormal basis of the rest
+        limits = []
+        for sign in (1.0, -1.0):
+            t_in, z_in, limit = 0.0, 0.0, None
+            p = np.concatenate([np.zeros(7), fit.nl])
+            for g in PROFILE_STEPS:
+                t = g * sd
+
+                def constrained(q, shift=sign * t * d, basis=others):
+                    return fun(np.concatenate([x_hat[:8] + shift + basis @ q[:7], q[7:]]))
+
+                try:
+                    res = least_squares(constrained, np.clip(p, np.r_[np.full(7, -np.inf), lo[8:]] + 1e-9,
+                                                             np.r_[np.full(7, np.inf), hi[8:]] - 1e-9),
+                                        bounds=(np.r_[np.full(7, -np.inf), lo[8:]], np.r_[np.full(7, np.inf), hi[8:]]),
+                                        diff_step=1e-4, max_nfev=PROFILE_NFEV, x_scale=1.0)
+                except (ValueError, np.linalg.LinAlgError):
+                    break
+                z = float(np.sqrt(max(2.0 * res.cost - rss0, 0.0) / sigma2))
+                if z >= z_limit:  # the 95 % limit lies between the last step inside and this one
+                    limit = t_in + (t - t_in) * (z_limit - z_in) / max(z - z_in, 1e-12)
+                    break
+                t_in, z_in, p = t, z, res.x
+            limits.append(limit if limit is not None else t_in)
+        sd_profile = float(np.mean(limits)) / 1.96
+        if sd_profile > sd:
+            out += (sd_profile ** 2 - sd ** 2) * np.outer(d, d)
+    return out * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
+
+
+def _profiled(fit: EffectFit | None, ctx: FitContext, effect: Effect | None,
+              base: tuple[EffectFit, ...] = ()) -> EffectFit | None:
+    """``fit`` with its coefficient covariance and std from :func:`profiled_coefficient_cov`."""
+    from dataclasses import replace
+
+    if fit is None or effect is None:
+        return fit
+    try:
+        cov = profiled_coefficient_cov(ctx, effect, fit, base)
+    except (ValueError, np.linalg.LinAlgError):
+        return fit
+    if not np.all(np.isfinite(cov)):
+        return fit
+    return replace(fit, coefficients_cov=cov, coefficients_std=np.sqrt(np.abs(np.diag(cov))))
+
+
+def _with_basin_std(singles, pairs, best, second, tied):
+    """Every fit's coefficient std over its refits' optima (:func:`coefficients_std_with_basins`); a verdict
+    tied with another effect also counts the tied fit's coefficients as an optimum as good as its own (the
+    data do not decide between the two models, so neither set of coefficients is preferred)."""
+    from dataclasses import replace
+
+    def widened(f: EffectFit | None, others: tuple[EffectFit, ...] = ()) -> EffectFit | None:
+        if f is None:
+            return None
+        rss = min((b[1] for b in f.basins), default=float(f.rss_m2))
+        n = min((b[2] for b in f.basins), default=int(f.n_obs))
+        g = replace(f, basins=f.basins + tuple((o.coefficients, rss, n) for o in others))
+        return replace(g, coefficients_std=coefficients_std_with_basins(g))
+
+    return ([widened(f) for f in singles], [widened(f) for f in pairs], widened(best, tuple(tied)),
+            widened(second), [widened(f) for f in tied])
+
+
+def coefficients_std_with_basins(fit: EffectFit) -> np.ndarray:
+    """Standard deviation of a fit's coefficients over every local optimum its joint refits found.
+
+    A record without an impact (one speed, the 1X only) can leave a long curved valley of coefficient sets
+    that fit to the noise floor (seen: three sets 30-60 % apart within noise, each with a local std of 2 %):
+    the local (sandwich) covariance then describes one point of it. The posterior is approximated by a
+    mixture of the local (Laplace) approximations at the optima (:attr:`EffectFit.basins`), each weighted by
+    its likelihood ratio to the best ``exp(-(RSS_i - RSS_min) / (2 sigma^2))`` with ``sigma^2 = RSS_min / n``
+    (equal basin volumes assumed), so the variance about the reported (best) point is the local one plus
+    ``sum_i w_i (r_i - r_best)^2``. Optima worse by a few noise variances weigh nothing: a decided record
+    keeps its local std.
+    """
+    local = np.asarray(fit.coefficients_std, float)
+    if not fit.basins:
+        return local
+    coef = np.array([b[0] for b in fit.basins])
+    rss = np.array([b[1] for b in fit.basins])
+    n = max(min(b[2] for b in fit.basins), 1)
+    sigma2 = max(float(rss.min()) / n, 1e-300)
+    w = np.exp(-0.5 * (rss - rss.min()) / sigma2)
+    w /= w.sum()
+    spread2 = (w[:, None] * (coef - fit.coefficients) ** 2).sum(axis=0)
+    return np.sqrt(local ** 2 + spread2)
 
 
 #: The direct damping terms (cxx, cyy) among the 8 coefficients, bounded below by 0 in the joint refits.
@@ -664,6 +819,9 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         cand = next((p for p in pairs if p.bic <= top.bic - threshold
                      and predicts_held_out(p.held_out_rms_m, top.held_out_rms_m)), None)
         if cand is not None:
+            a_fit = next(f for f in singles if f.name == cand.base[0])
+            say("coefficient uncertainty: likelihood profiles of the verdict's model")
+            cand = _profiled(cand, a_fit.ctx or ctx, by_name[cand.name], (a_fit,))
             rank = {f.name: i for i, f in enumerate(singles)}
             a_name, b_name = cand.base[0], cand.name
             first, other = (a_name, b_name) if rank[a_name] <= rank[b_name] else (b_name, a_name)
@@ -679,5 +837,9 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     if best is not None and second is None:
         tied = [f for f in singles[1:] if f.delta_bic >= threshold and predicts_held_out(f.held_out_rms_m, ho0)
                 and indistinguishable(f, best)][:1]
+    if best is not None and second is None:
+        say("coefficient uncertainty: likelihood profiles of the verdict's model")
+        best = _profiled(best, best.ctx or ctx, best.effect)
+    singles, pairs, best, second, tied = _with_basin_std(singles, pairs, best, second, tied)
     return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=singles,
                    best=best, second=second, pairs=pairs, tied=tied)

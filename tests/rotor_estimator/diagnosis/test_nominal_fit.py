@@ -65,3 +65,18 @@ def test_the_start_transient_is_estimated_only_when_the_record_before_its_first_
     assert build_context(from_rest, rf.rig, rf.estimator).start_transient
     paper = simulate(rf.rig, Scenario(), seed=1).recording
     assert not build_context(paper, rf.rig, rf.estimator).start_transient
+
+
+def test_nuisance_fit_is_the_least_squares_dc_and_start_transient_with_or_without_start_columns():
+    """Agreement with an independent least-squares solve (numpy lstsq on the stacked design): the DC-only
+    case (each channel's mean on the rows) and the DC + start-transient case give the same fitted signal."""
+    from rotor_estimator.diagnosis.context import nuisance_columns, nuisance_fit
+
+    rng = np.random.default_rng(3)
+    n = 300
+    rows = rng.random(n) > 0.2
+    err = rng.standard_normal((n, 4)) + np.array([1.0, -2.0, 0.5, 3.0])
+    for start in (np.zeros((n, 4, 0)), rng.standard_normal((n, 4, 8)) * np.exp(-np.arange(n) / 50.0)[:, None, None]):
+        cols = nuisance_columns(start)
+        coef, *_ = np.linalg.lstsq(cols[rows].reshape(-1, cols.shape[2]), err[rows].ravel(), rcond=None)
+        assert np.allclose(nuisance_fit(start, err, rows), np.einsum("nck,k->nc", cols, coef), atol=1e-10)

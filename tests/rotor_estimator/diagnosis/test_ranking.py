@@ -116,6 +116,87 @@ def test_held_out_check_accepts_a_tie_within_its_resolution_and_rejects_a_clear_
     assert not predicts_held_out(ref * 1.01, ref)
 
 
+def _fit_with_basins(coefficients, local_std, basins):
+    from rotor_estimator.diagnosis.ranking import EffectFit
+
+    z = np.zeros(0)
+    return EffectFit(name="x", base=(), nl=z, nl_std=z, lin=z, lin_std=z, physical={}, physical_std={}, n_params=0,
+                     rss_m2=1.0, n_obs=1000, bic=0.0, delta_bic=0.0, held_out_rms_m=0.0, residual_rms_m=np.zeros(4),
+                     coefficients=np.asarray(coefficients, float), prediction_m=np.zeros((1, 4)),
+                     coefficients_std=np.asarray(local_std, float), basins=tuple(basins))
+
+
+def test_coefficient_std_over_basins_is_the_mixture_of_equal_optima_and_ignores_worse_ones():
+    """Mixture of local optima (Laplace at each, weighted by likelihood ratio): two optima with the same
+    misfit a distance d apart give var = local^2 + d^2 / 2 about the best; an optimum worse by 100 noise
+    variances adds nothing; no basins or a single one leaves the local std unchanged."""
+    from rotor_estimator.diagnosis.ranking import coefficients_std_with_basins
+
+    best = np.full(8, 1e5)
+    local = np.full(8, 2e3)
+    other = best * 1.4
+    n, rss = 1000, 1000 * (1e-6) ** 2  # sigma^2 = rss / n
+    assert np.array_equal(coefficients_std_with_basins(_fit_with_basins(best, local, [])), local)
+    assert np.allclose(coefficients_std_with_basins(_fit_with_basins(best, local, [(best, rss, n)])), local)
+    equal = coefficients_std_with_basins(_fit_with_basins(best, local, [(best, rss, n), (other, rss, n)]))
+    assert np.allclose(equal, np.sqrt(local ** 2 + (other - best) ** 2 / 2))
+    worse = coefficients_std_with_basins(_fit_with_basins(best, local, [(best, rss, n),
+                                                                       (other, rss + 100 * rss / n, n)]))
+    assert np.allclose(worse, local, rtol=1e-6)
+    # one noise variance worse: weight exp(-1/2) against 1
+    w = np.exp(-0.5) / (1 + np.exp(-0.5))
+    one = coefficients_std_with_basins(_fit_with_basins(best, local, [(best, rss, n), (other, rss + rss / n, n)]))
+    assert np.allclose(one, np.sqrt(local ** 2 + w * (other - best) ** 2))
+
+
+def _profile_case(monkeypatch, along_weak):
+    """A synthetic misfit of the 8 scaled coefficients: 400 noise rows orthogonal to a well-conditioned linear
+    part, plus ``along_weak(s)`` as the residual along the direction of largest variance ``d``."""
+    from rotor_estimator.diagnosis import ranking
+    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE
+
+    rng = np.random.default_rng(11)
+    q, _ = np.linalg.qr(rng.standard_normal((400, 16)))
+    a, noise = q[:, :8] * np.array([50.0] * 7 + [5.0]), q[:, 8] * 2.0  # noise rows orthogonal to the design
+    d = np.eye(8)[7]
+    x_hat = np.linspace(1.0, 3.0, 8)
+
+    def fun(x):
+        e = x - x_hat
+        lin = a[:, :7] @ e[:7] + noise
+        return np.concatenate([lin, [along_weak(float(d @ e))], np.zeros(8)])
+
+    monkeypatch.setattr(ranking, "joint_misfit", lambda ctx, effect, base=(): (fun, np.full(8, -np.inf),
+                                                                              np.full(8, np.inf)))
+    sigma2 = 4.0 / 400  # RSS / n of the noise rows
+    local = sigma2 * np.linalg.inv(a.T @ a)  # the weak column: variance along d from its curvature 5^2
+    fit = _fit_with_basins(x_hat * COEFFICIENT_SCALE, np.sqrt(np.diag(local)) * COEFFICIENT_SCALE, [])
+    from dataclasses import replace as _replace
+    fit = _replace(fit, coefficients_cov=local * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE))
+    cov = ranking.profiled_coefficient_cov(None, None, fit) / np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
+    return local, cov
+
+
+def test_profile_leaves_a_quadratic_likelihood_alone(monkeypatch):
+    """Profile likelihood agrees with the local curvature when the misfit is exactly quadratic: the 95 %
+    limit is crossed at 1.96 local std along each profiled direction, so the covariance is unchanged."""
+    local, cov = _profile_case(monkeypatch, lambda s: 5.0 * s)
+    assert np.allclose(cov, local, rtol=1e-3, atol=1e-12)
+
+
+def test_profile_widens_a_valley_the_local_curvature_calls_narrow(monkeypatch):
+    """A misfit that curves like the local std near the optimum but saturates below the 95 % level (a valley
+    of equally good coefficient sets) is widened along it to the largest profile step (64 local std / 1.96);
+    the well-determined directions keep their variance."""
+    from rotor_estimator.diagnosis.ranking import PROFILE_STEPS
+
+    sigma = np.sqrt(4.0 / 400)
+    local, cov = _profile_case(monkeypatch, lambda s: 1.2 * sigma * np.tanh(5.0 * s / (1.2 * sigma)))
+    sd = np.sqrt(local[7, 7])
+    assert cov[7, 7] == pytest.approx((PROFILE_STEPS[-1] * sd / 1.96) ** 2, rel=1e-3)
+    assert np.allclose(cov[:7, :7], local[:7, :7], rtol=1e-3, atol=1e-12)
+
+
 @pytest.mark.slow
 def test_strong_misalignment_with_near_limit_skew_is_the_pair_not_runout():
     """A 250 N 2X force seen through probes skewed by up to 100 us (the skew's own gap 1.27x): both named.
