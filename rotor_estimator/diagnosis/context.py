@@ -48,6 +48,8 @@ from rotor_estimator.diagnosis.linsim import SpeedSchedule, free_response, simul
 
 #: Scale of the 8 coefficients in the output-error fit (N/m and N*s/m).
 COEFFICIENT_SCALE = np.array([1e5] * 4 + [1e3] * 4)
+#: Pseudo-observations the coefficient prior appends to every misfit (:class:`CoefficientPrior`): one per coefficient.
+PRIOR_ROWS = 8
 #: Leading time excluded from every fit (start-up transient of the re-simulation), s.
 WARMUP_S = 0.010
 #: Fraction of the fit span used for fitting in the held-out check (the rest is predicted).

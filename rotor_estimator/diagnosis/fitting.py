@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, FitContext, nuisance_columns
+from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, PRIOR_ROWS, FitContext, nuisance_columns
 
 
 def fixed_columns(ctx: FitContext) -> int:
@@ -57,7 +57,7 @@ def _design(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray:
 def prior_rows(ctx: FitContext, k: int) -> tuple[np.ndarray, np.ndarray]:
     """The coefficient prior's 8 pseudo-observations on a design of ``k`` columns (``dr`` first): rows (8, k)
     and target (8,) at the context's linearization point (m)."""
-    a = np.zeros((8, k))
+    a = np.zeros((PRIOR_ROWS, k))
     a[:, :8] = ctx.prior.design_rows()
     return a, -ctx.prior.residual_m(ctx.coefficients)
 
@@ -127,14 +127,13 @@ class Projector:
         a_prior, b_prior = prior_rows(ctx, full.shape[2])
         self.index = np.flatnonzero(rows)
         m = self.index.size * 4
-        a = np.empty((m + 8, full.shape[2]))  # filled in place: one copy of the design, as without the prior
+        a = np.empty((m + PRIOR_ROWS, full.shape[2]))  # filled in place: one copy of the design, as without the prior
         np.take(full, self.index, axis=0, out=a[:m].reshape(self.index.size, 4, full.shape[2]))
         a[m:] = a_prior
         norm = np.sqrt(np.einsum("ij,ij->j", a, a))
         norm[norm == 0] = 1.0
         a /= norm
         self.q, _ = np.linalg.qr(a)
-        self.rows = rows
         self.base_target = np.concatenate([(ctx.y_m - ctx.y_nom_m)[rows].ravel(), b_prior])
 
     def _perp(self, v: np.ndarray) -> np.ndarray:
@@ -143,8 +142,9 @@ class Projector:
     def _rows(self, v: np.ndarray) -> np.ndarray:
         """(N, 4[, k]) on every sample -> the design's rows, zero on the prior's."""
         m = self.index.size * 4
-        out = np.zeros((m + 8, *v.shape[2:]))
+        out = np.empty((m + PRIOR_ROWS, *v.shape[2:]))
         np.take(v, self.index, axis=0, out=out[:m].reshape(self.index.size, *v.shape[1:]))  # no second copy
+        out[m:] = 0.0
         return out
 
     def residual(self, offset: np.ndarray | None, cols: np.ndarray | None) -> np.ndarray:

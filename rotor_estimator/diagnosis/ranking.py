@@ -26,7 +26,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rotor_estimator.core.linear_filters import single_threaded_blas
-from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, FitContext
+from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, PRIOR_ROWS, FitContext
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.context import nuisance_columns
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
@@ -380,7 +380,7 @@ def joint_misfit(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = 
         return np.concatenate([b_vec, ctx.prior.residual_m(x[:8] * COEFFICIENT_SCALE)]) * RESIDUAL_SCALE
 
     scale = float(np.sqrt(np.mean(ctx.y_m[rows] ** 2))) + 1e-12
-    _UNSTABLE = np.full(int(rows.sum()) * 4 + 8, 10.0 * scale)
+    _UNSTABLE = np.full(int(rows.sum()) * 4 + PRIOR_ROWS, 10.0 * scale)
     _DIVERGED_M = 1e3 * scale  # a trial model whose output grows 1000x the data's is unstable, not a fit
     # direct damping cannot be negative in a passive bearing (the MAP point of a record without an impact,
     # where only the prior holds the coefficients, was seen at cxx = -350 N s/m)
@@ -437,7 +437,7 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
         explored += polished
     res = results[0]
     basins = fit.basins + tuple((r.x[:8] * COEFFICIENT_SCALE, 2.0 * float(r.cost) / RESIDUAL_SCALE ** 2,
-                                 int(r.fun.size) - 8) for r in explored
+                                 int(r.fun.size) - PRIOR_ROWS) for r in explored
                                 if np.isfinite(r.cost) and _stable(ctx, r.x[:8] * COEFFICIENT_SCALE))
     from dataclasses import replace
 
@@ -485,7 +485,7 @@ def profiled_coefficient_cov(ctx: FitContext, effect: Effect, fit: EffectFit,
     fun, lo, hi = joint_misfit(ctx, effect, base)
     x_hat = np.concatenate([fit.coefficients / COEFFICIENT_SCALE, fit.nl])
     f0 = fun(x_hat)
-    n = f0.size - 8
+    n = f0.size - PRIOR_ROWS
     rss0 = float(f0 @ f0)
     sigma2 = rss0 / max(n, 1)
     cov = cov_si / np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
@@ -553,7 +553,8 @@ def _with_basin_std(singles, pairs, best, second, tied):
             return None
         rss = min((b[1] for b in f.basins), default=float(f.rss_m2))
         n = min((b[2] for b in f.basins), default=int(f.n_obs))
-        g = replace(f, basins=f.basins + tuple((o.coefficients, rss, n) for o in others))
+        own = f.basins or (((f.coefficients, rss, n),) if others else ())  # its own optimum beside a tied one's
+        g = replace(f, basins=own + tuple((o.coefficients, rss, n) for o in others))
         return replace(g, coefficients_std=coefficients_std_with_basins(g))
 
     return ([widened(f) for f in singles], [widened(f) for f in pairs], widened(best, tuple(tied)),
@@ -675,7 +676,7 @@ def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 
     if res is None:
         return float("inf"), np.asarray(coefficients, float)
     rss = float(np.sum(res.fun ** 2)) / RESIDUAL_SCALE ** 2  # data and prior rows (MAP)
-    return bic(rss, res.fun.size - 8, nominal_params(ctx)), res.x * COEFFICIENT_SCALE
+    return bic(rss, res.fun.size - PRIOR_ROWS, nominal_params(ctx)), res.x * COEFFICIENT_SCALE
 
 
 def _with_reference(f: EffectFit, ref_bic: float) -> EffectFit:

@@ -149,6 +149,21 @@ def test_coefficient_std_over_basins_is_the_mixture_of_equal_optima_and_ignores_
     assert np.allclose(one, np.sqrt(local ** 2 + w * (other - best) ** 2))
 
 
+def test_a_tied_effects_coefficients_count_as_an_optimum_as_good_as_the_verdicts():
+    """A tie (the data do not decide between two models): the verdict's coefficient std takes in the tied
+    fit's coefficients with equal weight, var = local^2 + d^2 / 2, with or without refit optima of its own."""
+    from rotor_estimator.diagnosis.ranking import _with_basin_std
+
+    best, other, local = np.full(8, 1e5), np.full(8, 1.3e5), np.full(8, 1e3)
+    expected = np.sqrt(local ** 2 + (other - best) ** 2 / 2)
+    for basins in ([], [(best, 1e-9, 1000)]):
+        verdict, tied = _fit_with_basins(best, local, basins), _fit_with_basins(other, local, [])
+        _, _, widened, _, _ = _with_basin_std([], [], verdict, None, [tied])
+        assert np.allclose(widened.coefficients_std, expected)
+    alone, = _with_basin_std([], [], None, None, [_fit_with_basins(best, local, [])])[4]
+    assert np.array_equal(alone.coefficients_std, local)
+
+
 def _profile_case(monkeypatch, along_weak):
     """A synthetic misfit of the 8 scaled coefficients: 400 noise rows orthogonal to a well-conditioned linear
     part, plus ``along_weak(s)`` as the residual along the direction of largest variance ``d``."""
