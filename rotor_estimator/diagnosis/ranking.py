@@ -345,10 +345,11 @@ def _nl_sensitivities(ctx: FitContext, effect: Effect, nl: np.ndarray, base, fix
     return np.where(np.isfinite(out), out, 0.0)
 
 
-def joint_misfit(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()):
+def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, ...] = ()):
     """``(fun, lo, hi)``: the exact (re-simulated, not linearized) residual of the 8 coefficients (scaled) and
     the effect's nonlinear parameters, the linear ones projected out, with the coefficient prior's rows (MAP),
-    in micrometres; and its bounds. Shared by :func:`refine` and :func:`profiled_coefficient_cov`."""
+    in micrometres; and its bounds. ``effect=None``: the nominal model's (the coefficients only). Shared by
+    :func:`refine` and :func:`profiled_coefficient_cov`."""
     from rotor_estimator.diagnosis.context import with_coefficients
 
     n = ctx.t_s.size
@@ -360,10 +361,13 @@ def joint_misfit(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = 
             # impact cannot tell them apart by their 1X (the MAP point of such a record was seen unstable)
             return _UNSTABLE * RESIDUAL_SCALE
         c2 = with_coefficients(ctx, x[:8] * COEFFICIENT_SCALE)
-        b_off, b_cols, o, c = _compose(c2, effect, x[8:], [(b.effect, b.nl) for b in base],
-                                       *_parts(c2, effect, x[8:], base))
-        off = _sum([b_off, o])
-        x_cols = _stack([c2.start_columns_m, b_cols, c], n)  # the start transient at these coefficients too
+        if effect is None:
+            off, x_cols = None, c2.start_columns_m
+        else:
+            b_off, b_cols, o, c = _compose(c2, effect, x[8:], [(b.effect, b.nl) for b in base],
+                                           *_parts(c2, effect, x[8:], base))
+            off = _sum([b_off, o])
+            x_cols = _stack([c2.start_columns_m, b_cols, c], n)  # the start transient at these coefficients too
         target = c2.y_m - c2.y_nom_m - (0.0 if off is None else off)
         # a structural effect's offset is its model's output minus the rigid nominal's: with a diverging nominal
         # the two cancel to rounding noise (a "fit" below the noise floor was seen), so that point is a wall too
@@ -384,8 +388,9 @@ def joint_misfit(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = 
     _DIVERGED_M = 1e3 * scale  # a trial model whose output grows 1000x the data's is unstable, not a fit
     # direct damping cannot be negative in a passive bearing (the MAP point of a record without an impact,
     # where only the prior holds the coefficients, was seen at cxx = -350 N s/m)
-    lo = np.concatenate([np.where(_DIRECT_DAMPING, 0.0, -np.inf), effect.nl_bounds(ctx)[0]])
-    hi = np.concatenate([np.full(8, np.inf), effect.nl_bounds(ctx)[1]])
+    nl_lo, nl_hi = effect.nl_bounds(ctx) if effect is not None else (np.zeros(0), np.zeros(0))
+    lo = np.concatenate([np.where(_DIRECT_DAMPING, 0.0, -np.inf), nl_lo])
+    hi = np.concatenate([np.full(8, np.inf), nl_hi])
     return fun, lo, hi
 
 
@@ -466,9 +471,10 @@ PROFILE_NFEV = 8
 PROFILE_CHI2 = 3.841
 
 
-def profiled_coefficient_cov(ctx: FitContext, effect: Effect, fit: EffectFit,
-                             base: tuple[EffectFit, ...] = ()) -> np.ndarray:
-    """The fit's (8, 8) coefficient covariance (SI), widened where the likelihood is flatter than its curvature.
+def profiled_coefficient_cov(ctx: FitContext, effect: Effect | None, coefficients: np.ndarray, nl: np.ndarray,
+                             cov_si: np.ndarray, base: tuple[EffectFit, ...] = ()) -> np.ndarray:
+    """A fit's (8, 8) coefficient covariance ``cov_si`` (SI) at its optimum ``(coefficients, nl)`` (the nominal
+    model's when ``effect`` is None), widened where the likelihood is flatter than its curvature.
 
     Profile likelihood (Venzon & Moolgavkar 1988; Raue et al. 2009 for practical non-identifiability): along
     each of the :data:`PROFILE_DIRECTIONS` directions of largest local variance, the coefficients are
@@ -479,11 +485,12 @@ def profiled_coefficient_cov(ctx: FitContext, effect: Effect, fit: EffectFit,
     coefficient sets that fit a 1X-only record equally well (seen: 40 % off at a local std of 2 %) is
     widened to its extent (or to the largest step when the profile never rises that far).
     """
-    cov_si = np.asarray(fit.coefficients_cov, float)
+    cov_si = np.asarray(cov_si, float)
+    nl = np.asarray(nl, float)
     if not np.all(np.isfinite(cov_si)):
         return cov_si
     fun, lo, hi = joint_misfit(ctx, effect, base)
-    x_hat = np.concatenate([fit.coefficients / COEFFICIENT_SCALE, fit.nl])
+    x_hat = np.concatenate([np.asarray(coefficients, float) / COEFFICIENT_SCALE, nl])
     f0 = fun(x_hat)
     n = f0.size - PRIOR_ROWS
     rss0 = float(f0 @ f0)
@@ -500,7 +507,7 @@ def profiled_coefficient_cov(ctx: FitContext, effect: Effect, fit: EffectFit,
         limits = []
         for sign in (1.0, -1.0):
             t_in, z_in, limit = 0.0, 0.0, None
-            p = np.concatenate([np.zeros(7), fit.nl])
+            p = np.concatenate([np.zeros(7), nl])
             for g in PROFILE_STEPS:
                 t = g * sd
 
@@ -534,7 +541,7 @@ def _profiled(fit: EffectFit | None, ctx: FitContext, effect: Effect | None,
     if fit is None or effect is None:
         return fit
     try:
-        cov = profiled_coefficient_cov(ctx, effect, fit, base)
+        cov = profiled_coefficient_cov(ctx, effect, fit.coefficients, fit.nl, fit.coefficients_cov, base)
     except (ValueError, np.linalg.LinAlgError):
         return fit
     if not np.all(np.isfinite(cov)):

@@ -188,7 +188,8 @@ def _profile_case(monkeypatch, along_weak):
     fit = _fit_with_basins(x_hat * COEFFICIENT_SCALE, np.sqrt(np.diag(local)) * COEFFICIENT_SCALE, [])
     from dataclasses import replace as _replace
     fit = _replace(fit, coefficients_cov=local * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE))
-    cov = ranking.profiled_coefficient_cov(None, None, fit) / np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
+    cov = ranking.profiled_coefficient_cov(None, None, fit.coefficients, fit.nl, fit.coefficients_cov) \
+        / np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
     return local, cov
 
 
