@@ -20,7 +20,7 @@ Decision rule (documented in the report):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -444,8 +444,6 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     basins = fit.basins + tuple((r.x[:8] * COEFFICIENT_SCALE, 2.0 * float(r.cost) / RESIDUAL_SCALE ** 2,
                                  int(r.fun.size) - PRIOR_ROWS) for r in explored
                                 if np.isfinite(r.cost) and _stable(ctx, r.x[:8] * COEFFICIENT_SCALE))
-    from dataclasses import replace
-
     if not _stable(ctx, res.x[:8] * COEFFICIENT_SCALE):
         # the rigid nominal with these coefficients diverges (possible with a pedestal or a hardening in the
         # loop): linearizing about it gives meaningless columns and residuals, so the refit is not used
@@ -505,6 +503,7 @@ def profiled_coefficient_cov(ctx: FitContext, effect: Effect | None, coefficient
             continue
         others = np.linalg.svd(np.eye(8) - np.outer(d, d))[0][:, :7]  # orthonormal basis of the rest
         limits = []
+        p_lo, p_hi = np.r_[np.full(7, -np.inf), lo[8:]], np.r_[np.full(7, np.inf), hi[8:]]  # the 7 others are free
         for sign in (1.0, -1.0):
             t_in, z_in, limit = 0.0, 0.0, None
             p = np.concatenate([np.zeros(7), nl])
@@ -515,9 +514,7 @@ def profiled_coefficient_cov(ctx: FitContext, effect: Effect | None, coefficient
                     return fun(np.concatenate([x_hat[:8] + shift + basis @ q[:7], q[7:]]))
 
                 try:
-                    res = least_squares(constrained, np.clip(p, np.r_[np.full(7, -np.inf), lo[8:]] + 1e-9,
-                                                             np.r_[np.full(7, np.inf), hi[8:]] - 1e-9),
-                                        bounds=(np.r_[np.full(7, -np.inf), lo[8:]], np.r_[np.full(7, np.inf), hi[8:]]),
+                    res = least_squares(constrained, np.clip(p, p_lo + 1e-9, p_hi - 1e-9), bounds=(p_lo, p_hi),
                                         diff_step=1e-4, max_nfev=PROFILE_NFEV, x_scale=1.0)
                 except (ValueError, np.linalg.LinAlgError):
                     break
@@ -536,8 +533,6 @@ def profiled_coefficient_cov(ctx: FitContext, effect: Effect | None, coefficient
 def _profiled(fit: EffectFit | None, ctx: FitContext, effect: Effect | None,
               base: tuple[EffectFit, ...] = ()) -> EffectFit | None:
     """``fit`` with its coefficient covariance and std from :func:`profiled_coefficient_cov`."""
-    from dataclasses import replace
-
     if fit is None or effect is None:
         return fit
     try:
@@ -553,8 +548,6 @@ def _with_basin_std(singles, pairs, best, second, tied):
     """Every fit's coefficient std over its refits' optima (:func:`coefficients_std_with_basins`); a verdict
     tied with another effect also counts the tied fit's coefficients as an optimum as good as its own (the
     data do not decide between the two models, so neither set of coefficients is preferred)."""
-    from dataclasses import replace
-
     def widened(f: EffectFit | None, others: tuple[EffectFit, ...] = ()) -> EffectFit | None:
         if f is None:
             return None
@@ -610,8 +603,6 @@ def _stable(ctx: FitContext, coefficients: np.ndarray) -> bool:
 
 def _refit_base(ctx: FitContext, b: EffectFit) -> EffectFit:
     """A base effect's basis re-evaluated at a new linearization point (same nonlinear parameters)."""
-    from dataclasses import replace
-
     off, cols = b.effect.basis(ctx, b.nl)
     return replace(b, offset=off, cols=cols if b.effect.lin_names(ctx) else np.zeros((ctx.t_s.size, 4, 0)))
 
@@ -637,8 +628,6 @@ def _joint_parameters(single: EffectFit, pair: EffectFit, effect: Effect) -> Eff
     The pair's own effect has its fitted parameters; its base kept the single's nonlinear
     parameters and had its gains (linear parameters) refitted with the partner.
     """
-    from dataclasses import replace
-
     if single.name == pair.name:
         nl, nl_std, lin, lin_cov = pair.nl, pair.nl_std, pair.lin, pair.lin_cov
     else:
@@ -687,8 +676,6 @@ def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 
 
 
 def _with_reference(f: EffectFit, ref_bic: float) -> EffectFit:
-    from dataclasses import replace
-
     return replace(f, delta_bic=ref_bic - f.bic)
 
 
@@ -833,8 +820,6 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             rank = {f.name: i for i, f in enumerate(singles)}
             a_name, b_name = cand.base[0], cand.name
             first, other = (a_name, b_name) if rank[a_name] <= rank[b_name] else (b_name, a_name)
-            from dataclasses import replace
-
             joint = {n: _joint_parameters(next(f for f in singles if f.name == n), cand, by_name[n])
                      for n in (first, other)}
             best, o = joint[first], joint[other]
