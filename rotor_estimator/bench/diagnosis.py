@@ -83,6 +83,8 @@ def diagnose_case(case_dir: str) -> dict:
             "coefficients_std": list(s["coefficients_verdict_std"].values()),
             "top_two": s["top_two"], "before": s["residual_rms_before"], "after": s["residual_rms_after"],
             "shrink_ratio": s["shrink_ratio"], "ranking": [(r["effect"], r["delta_bic"]) for r in s["ranking"][:3]],
+            # the verdict's effect parameters with their reported std (scored by :func:`_parameter_coverage`)
+            "best_effect_fit": s["best_effect_fit"], "second_effect_fit": s["second_effect_fit"],
             "seconds": time.time() - t0}
 
 
