@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from rotor_estimator.bench.blind import MIN_GAP, load_recording, write_blind_set
+from rotor_estimator.bench.parameter_truth import covered, independent_truth, own_truth
 from rotor_estimator.batch.runner import map_ordered
 from rotor_estimator.core.errors import InputError
 
@@ -88,7 +89,10 @@ def diagnose_case(case_dir: str) -> dict:
             "seconds": time.time() - t0}
 
 
-def score(results: list[dict], labels: dict) -> dict:
+def score(results: list[dict], labels: dict, rigs: dict | None = None) -> dict:
+    """Score diagnosed cases against their labels. ``rigs``: case id -> ``(correction planes m, sample rate Hz)``
+    of its rig file (the independent labels' unbalance station and delay in samples need them; without, those
+    parameters count as having no counterpart)."""
     rows, cm_labels = [], set()
     for r in results:
         lab = labels[r["case"]]
@@ -117,8 +121,10 @@ def score(results: list[dict], labels: dict) -> dict:
         own = lab.get("effect_gap") or {}
         separable = min(own.values()) >= MIN_GAP if len(truth) == 2 and len(own) == 2 else None
         cover, worst_direct, worst_cross = _coefficient_errors(r, lab)
+        param_cover, no_counterpart = _parameter_coverage(r, lab, (rigs or {}).get(r["case"]))
         rows.append({"case": r["case"], "truth": key, "verdict": best, "top1": t1, "top2": t2, "gap": gap,
                      "set_verdict": bool(tied), "coefficients_covered": cover, "worst_direct_error": worst_direct,
+                     "parameters_covered": param_cover, "parameters_without_counterpart": no_counterpart,
                      "worst_cross_error": worst_cross,
                      "generator": lab["generator"], "ross": from_ross(lab), "shrink_error": shrink_err,
                      "seconds": r.get("seconds", 0.0),
@@ -145,6 +151,9 @@ def score(results: list[dict], labels: dict) -> dict:
             "set_verdicts": int(sum(x["set_verdict"] for x in rows)),
             "coefficient_coverage": _mean_of([c for x in rows for c in x["coefficients_covered"]]),
             "n_coefficients_scored": sum(len(x["coefficients_covered"]) for x in rows),
+            "parameter_coverage": _mean_of([c for x in rows for c in x["parameters_covered"].values()]),
+            "n_parameters_scored": sum(len(x["parameters_covered"]) for x in rows),
+            "n_parameters_without_counterpart": sum(x["parameters_without_counterpart"] for x in rows),
             "worst_direct_error_median": _median_of([x["worst_direct_error"] for x in rows]),
             "worst_cross_error_median": _median_of([x["worst_cross_error"] for x in rows]),
             # the independent generator labels the gap of its true model (never a fit of the diagnosis)
@@ -178,6 +187,36 @@ def _coefficient_errors(result: dict, label: dict) -> tuple[list[bool], float, f
     return covered, worst["direct"], worst["cross"]
 
 
+def _parameter_coverage(result: dict, label: dict, rig: tuple | None) -> tuple[dict[str, bool], int]:
+    """Each true effect parameter of a verdict that holds the effect: is it within +-1.96 reported std
+    (``{effect.parameter: covered}``), and how many true parameters have no counterpart in the verdict's
+    reported ones (another physical form, no std, or no rig data). A verdict without the effect scores nothing:
+    that is top-1's business."""
+    fits = {f["name"]: f for f in (result.get("best_effect_fit"), result.get("second_effect_fit")) if f}
+    out, missing = {}, 0
+    for effect in label.get("effects", []):
+        fit = fits.get(effect)
+        if fit is None:
+            continue
+        if generator_family(label) == "independent":
+            if rig is None:
+                missing += 1
+                continue
+            truth = independent_truth(effect, label.get("effect_params", {}).get(effect, {}), rig[0], rig[1])
+        else:
+            truth = own_truth(effect, label.get("effects_params") or {})
+        missing += 0 if truth else 1
+        reported = fit.get("parameters", {})
+        for name, value in truth.items():
+            est = reported.get(name)
+            std = float(est["std"]) if est else float("nan")
+            if est is None or not (np.isfinite(std) and std > 0):
+                missing += 1
+                continue
+            out[f"{effect}.{name}"] = covered(name, float(est["value"]), std, float(value))
+    return out, missing
+
+
 def _mean_of(values: list) -> float:
     return float(np.mean(values)) if values else float("nan")
 
@@ -195,10 +234,26 @@ def _confusion(rows: list[dict]) -> dict:
                        for t in truths]}
 
 
-def score_by_generator(results: list[dict], labels: dict) -> dict[str, dict]:
+def score_by_generator(results: list[dict], labels: dict, rigs: dict | None = None) -> dict[str, dict]:
     """:func:`score` of each generator's cases apart (keys ``own`` / ``independent``)."""
     families = sorted({generator_family(labels[r["case"]]) for r in results})
-    return {g: score([r for r in results if generator_family(labels[r["case"]]) == g], labels) for g in families}
+    return {g: score([r for r in results if generator_family(labels[r["case"]]) == g], labels, rigs)
+            for g in families}
+
+
+def rig_facts(case_dir: str | Path) -> tuple[tuple[float, float], float] | None:
+    """``(correction planes m, sample rate Hz)`` of a case's rig file, as the unbalance effect takes its planes
+    (:func:`.effects.base.unbalance_planes`); ``None`` when the file cannot be read."""
+    from rotor_estimator.core.config import load_rig_file
+    from rotor_estimator.core.errors import ConfigError
+
+    try:
+        rig = load_rig_file(Path(case_dir) / "rig.yaml").rig
+    except (OSError, ConfigError, InputError):
+        return None
+    planes = sorted({u.axial_position_m for u in rig.imbalances})
+    pair = (planes[0], planes[-1]) if len(planes) >= 2 else (rig.bearing1_position_m, rig.bearing2_position_m)
+    return pair, float(rig.sample_rate_hz)
 
 
 def format_score(s: dict) -> str:
@@ -233,6 +288,9 @@ def _format_one(s: dict) -> str:
             f"set verdicts (ties)      {s['set_verdicts']} (a hit when <= 2 members and holding the truth)",
             f"coefficient coverage     {100 * s['coefficient_coverage']:.1f} % of {s['n_coefficients_scored']} "
             "within +-1.96 reported std (target 90-98 %)",
+            f"parameter coverage       {100 * s['parameter_coverage']:.1f} % of {s['n_parameters_scored']} "
+            f"effect parameters of verdicts holding the effect ({s['n_parameters_without_counterpart']} without a "
+            "counterpart in the reported form, not scored)",
             f"worst coefficient error  median {100 * s['worst_direct_error_median']:.1f} % direct, "
             f"{100 * s['worst_cross_error_median']:.1f} % cross-coupled (of the largest true term of each kind)",
             *([f"top-1 where true gap >= 1.5x {100 * s['top1_true_gap_clear']:.1f} % of {s['n_true_gap_clear']}"]
@@ -274,7 +332,7 @@ def score_sets(set_dirs: list[str | Path]) -> dict:
     prefixed with their set's directory name, ``cases_in_set`` counts every case of every set (the score says
     PARTIAL when some are not diagnosed yet), and each generator is scored apart. With one set the ids are
     kept as they are."""
-    results, labels, families, total = [], {}, [], 0
+    results, labels, families, total, rigs = [], {}, [], 0, {}
     for out in map(Path, set_dirs):
         if not (out / "cases").is_dir() or not (out / "labels" / "labels.json").is_file():
             raise InputError(f"{out}: not a blind set (expected cases/ and labels/labels.json)")
@@ -286,11 +344,12 @@ def score_sets(set_dirs: list[str | Path]) -> dict:
             key = f"{out.name}/{cid}" if len(set_dirs) > 1 else cid
             results.append({**r, "case": key})
             labels[key] = set_labels[cid]
+            rigs[key] = rig_facts(out / "cases" / cid)
     if not results:
         raise InputError(f"{', '.join(map(str, set_dirs))}: no case diagnosed yet (results/ is empty)")
-    s = score(results, labels)
+    s = score(results, labels, rigs)
     s["cases_in_set"] = total
-    s["by_generator"] = score_by_generator(results, labels)
+    s["by_generator"] = score_by_generator(results, labels, rigs)
     for g, sub in s["by_generator"].items():
         sub["cases_in_set"] = families.count(g)
     return s
