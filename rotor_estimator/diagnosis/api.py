@@ -21,7 +21,7 @@ from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.effects.base import separating_measurements
 from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, TIE_LR_QUANTILE,
                                               TIE_MARGIN_BIC, EffectFit, Ranking, misfit, nominal_solution,
-                                              parameter_covariance, profiled_coefficient_cov, rank_effects)
+                                              parameter_covariance, profiled_or_local, rank_effects)
 from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
 #: Residual RMS over noise RMS above which the gap left after the verdict is reported as unexplained.
@@ -339,10 +339,7 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     nominal_cov_si = nominal_cov[:8, :8] * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
     if rk.best is None:  # the nominal model is the verdict: its coefficients' likelihood profile too
         say("coefficient uncertainty: likelihood profiles of the nominal model")
-        try:
-            nominal_cov_si = profiled_coefficient_cov(ctx, None, ctx.coefficients, np.zeros(0), nominal_cov_si)
-        except (ValueError, np.linalg.LinAlgError):
-            pass
+        nominal_cov_si = profiled_or_local(ctx, None, ctx.coefficients, np.zeros(0), nominal_cov_si)
     nominal_std = np.sqrt(np.abs(np.diag(nominal_cov_si)))
     table = [_row(ctx, "nominal", sol0.prediction_m, ho0, ctx.coefficients, nominal_std)]
     shown = []

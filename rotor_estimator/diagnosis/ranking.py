@@ -117,7 +117,7 @@ class EffectFit:
     #: (8,) standard deviation of :attr:`coefficients` (SI), sandwich (:func:`parameter_covariance`)
     coefficients_std: np.ndarray = field(repr=False, default_factory=lambda: np.full(8, np.nan))
     #: Local optima of the joint refits (:func:`refine`): ``(coefficients SI (8,), penalized RSS m^2, data rows)``
-    #: of every start, on one exact (not linearized) misfit, so comparable; see :func:`coefficients_std_with_basins`
+    #: of every start, on one exact (not linearized) misfit, so comparable; see :func:`coefficients_cov_with_basins`
     basins: tuple[tuple[np.ndarray, float, int], ...] = field(repr=False, default=())
     #: (8, 8) covariance of :attr:`coefficients` (SI): the local sandwich one, widened along the directions the
     #: likelihood profile finds flatter than it (:func:`profiled_coefficient_cov`) for a verdict's fit
@@ -530,23 +530,31 @@ def profiled_coefficient_cov(ctx: FitContext, effect: Effect | None, coefficient
     return out * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
 
 
+def profiled_or_local(ctx: FitContext, effect: Effect | None, coefficients: np.ndarray, nl: np.ndarray,
+                      cov_si: np.ndarray, base: tuple[EffectFit, ...] = ()) -> np.ndarray:
+    """:func:`profiled_coefficient_cov`, or ``cov_si`` unchanged when the profile cannot be traced (a refit
+    fails or gives a non-finite covariance): one rule for the effect fits and the nominal model's."""
+    try:
+        cov = profiled_coefficient_cov(ctx, effect, coefficients, nl, cov_si, base)
+    except (ValueError, np.linalg.LinAlgError):
+        return cov_si
+    return cov if np.all(np.isfinite(cov)) else cov_si
+
+
 def _profiled(fit: EffectFit | None, ctx: FitContext, effect: Effect | None,
               base: tuple[EffectFit, ...] = ()) -> EffectFit | None:
-    """``fit`` with its coefficient covariance and std from :func:`profiled_coefficient_cov`."""
+    """``fit`` with its coefficient covariance and std from :func:`profiled_or_local`."""
     if fit is None or effect is None:
         return fit
-    try:
-        cov = profiled_coefficient_cov(ctx, effect, fit.coefficients, fit.nl, fit.coefficients_cov, base)
-    except (ValueError, np.linalg.LinAlgError):
-        return fit
-    if not np.all(np.isfinite(cov)):
+    cov = profiled_or_local(ctx, effect, fit.coefficients, fit.nl, fit.coefficients_cov, base)
+    if cov is fit.coefficients_cov:
         return fit
     return replace(fit, coefficients_cov=cov, coefficients_std=np.sqrt(np.abs(np.diag(cov))))
 
 
 def _with_basin_std(singles, pairs, best, second, tied):
-    """Every fit's coefficient std over its refits' optima (:func:`coefficients_std_with_basins`); a verdict
-    tied with another effect also counts the tied fit's coefficients as an optimum as good as its own (the
+    """Every fit's coefficient covariance and std over its refits' optima (:func:`coefficients_cov_with_basins`);
+    a verdict tied with another effect also counts the tied fit's coefficients as an optimum as good as its own (the
     data do not decide between the two models, so neither set of coefficients is preferred)."""
     def widened(f: EffectFit | None, others: tuple[EffectFit, ...] = ()) -> EffectFit | None:
         if f is None:
@@ -555,25 +563,31 @@ def _with_basin_std(singles, pairs, best, second, tied):
         n = min((b[2] for b in f.basins), default=int(f.n_obs))
         own = f.basins or (((f.coefficients, rss, n),) if others else ())  # its own optimum beside a tied one's
         g = replace(f, basins=own + tuple((o.coefficients, rss, n) for o in others))
-        return replace(g, coefficients_std=coefficients_std_with_basins(g))
+        cov = coefficients_cov_with_basins(g)
+        return replace(g, coefficients_cov=cov, coefficients_std=np.sqrt(np.abs(np.diag(cov))))
 
     return ([widened(f) for f in singles], [widened(f) for f in pairs], widened(best, tuple(tied)),
             widened(second), [widened(f) for f in tied])
 
 
-def coefficients_std_with_basins(fit: EffectFit) -> np.ndarray:
-    """Standard deviation of a fit's coefficients over every local optimum its joint refits found.
+def coefficients_cov_with_basins(fit: EffectFit) -> np.ndarray:
+    """(8, 8) covariance (SI) of a fit's coefficients over every local optimum its joint refits found.
 
     A record without an impact (one speed, the 1X only) can leave a long curved valley of coefficient sets
     that fit to the noise floor (seen: three sets 30-60 % apart within noise, each with a local std of 2 %):
     the local (sandwich) covariance then describes one point of it. The posterior is approximated by a
     mixture of the local (Laplace) approximations at the optima (:attr:`EffectFit.basins`), each weighted by
     its likelihood ratio to the best ``exp(-(RSS_i - RSS_min) / (2 sigma^2))`` with ``sigma^2 = RSS_min / n``
-    (equal basin volumes assumed), so the variance about the reported (best) point is the local one plus
-    ``sum_i w_i (r_i - r_best)^2``. Optima worse by a few noise variances weigh nothing: a decided record
-    keeps its local std.
+    (equal basin volumes assumed), so the covariance about the reported (best) point is the local one plus
+    ``sum_i w_i (r_i - r_best)(r_i - r_best)^T``. Optima worse by a few noise variances weigh nothing: a
+    decided record keeps its local covariance. The local covariance is :attr:`EffectFit.coefficients_cov`, or
+    the diagonal of the local std when that is not an (8, 8) finite matrix.
     """
-    local = np.asarray(fit.coefficients_std, float)
+    local_std = np.asarray(fit.coefficients_std, float)
+    local = np.asarray(fit.coefficients_cov, float)
+    if local.shape != (8, 8) or not np.all(np.isfinite(local)) \
+            or not np.allclose(np.sqrt(np.abs(np.diag(local))), local_std, rtol=1e-9, equal_nan=True):
+        local = np.diag(local_std ** 2)
     if not fit.basins:
         return local
     coef = np.array([b[0] for b in fit.basins])
@@ -582,8 +596,16 @@ def coefficients_std_with_basins(fit: EffectFit) -> np.ndarray:
     sigma2 = max(float(rss.min()) / n, 1e-300)
     w = np.exp(-0.5 * (rss - rss.min()) / sigma2)
     w /= w.sum()
-    spread2 = (w[:, None] * (coef - fit.coefficients) ** 2).sum(axis=0)
-    return np.sqrt(local ** 2 + spread2)
+    d = coef - fit.coefficients
+    return local + (w[:, None, None] * d[:, :, None] * d[:, None, :]).sum(axis=0)
+
+
+def coefficients_std_with_basins(fit: EffectFit) -> np.ndarray:
+    """Standard deviation of a fit's coefficients over its refits' optima: the diagonal of
+    :func:`coefficients_cov_with_basins`."""
+    if not fit.basins:
+        return np.asarray(fit.coefficients_std, float)
+    return np.sqrt(np.abs(np.diag(coefficients_cov_with_basins(fit))))
 
 
 #: The direct damping terms (cxx, cyy) among the 8 coefficients, bounded below by 0 in the joint refits.

@@ -164,6 +164,26 @@ def test_a_tied_effects_coefficients_count_as_an_optimum_as_good_as_the_verdicts
     assert np.array_equal(alone.coefficients_std, local)
 
 
+def test_widened_covariance_agrees_with_the_widened_std_and_keeps_the_spread_direction():
+    """The mixture's covariance is the local one plus ``sum w d d^T``: its diagonal is the widened std squared
+    (so the two never disagree), and two equal optima a vector d apart add d d^T / 2, off-diagonal terms
+    included (the valley's direction, not only its extent per coefficient)."""
+    from dataclasses import replace
+
+    from rotor_estimator.diagnosis.ranking import _with_basin_std, coefficients_cov_with_basins
+
+    best, local = np.full(8, 1e5), np.full(8, 1e3)
+    d = np.linspace(-3e4, 4e4, 8)
+    n, rss = 1000, 1e-9
+    fit = replace(_fit_with_basins(best, local, [(best, rss, n), (best + d, rss, n)]),
+                  coefficients_cov=np.diag(local ** 2))
+    cov = coefficients_cov_with_basins(fit)
+    assert np.allclose(cov, np.diag(local ** 2) + np.outer(d, d) / 2)
+    _, _, widened, _, _ = _with_basin_std([], [], fit, None, [])
+    assert np.allclose(np.sqrt(np.diag(widened.coefficients_cov)), widened.coefficients_std)
+    assert np.allclose(widened.coefficients_cov, cov)
+
+
 def _profile_case(monkeypatch, along_weak):
     """A synthetic misfit of the 8 scaled coefficients: 400 noise rows orthogonal to a well-conditioned linear
     part, plus ``along_weak(s)`` as the residual along the direction of largest variance ``d``."""
