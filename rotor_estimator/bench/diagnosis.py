@@ -199,13 +199,14 @@ def _parameter_coverage(result: dict, label: dict, rig: tuple | None) -> tuple[d
         fit = fits.get(effect)
         if fit is None:
             continue
-        if generator_family(label) == "independent":
-            if rig is None:
-                missing += 1
-                continue
-            truth = independent_truth(effect, label.get("effect_params", {}).get(effect, {}), rig[0], rig[1])
-        else:
-            truth = own_truth(effect, label.get("effects_params") or {})
+        try:
+            if generator_family(label) == "independent":
+                truth = {} if rig is None else independent_truth(
+                    effect, label.get("effect_params", {}).get(effect, {}), rig[0], rig[1])
+            else:
+                truth = own_truth(effect, label.get("effects_params") or {})
+        except (KeyError, IndexError, TypeError, ValueError):  # a label without this effect's parameters
+            truth = {}
         missing += 0 if truth else 1
         reported = fit.get("parameters", {})
         for name, value in truth.items():

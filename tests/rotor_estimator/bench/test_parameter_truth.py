@@ -87,3 +87,6 @@ def test_parameter_coverage_scores_only_verdicts_holding_the_effect():
     assert rows["c"]["parameters_covered"] == {} and rows["c"]["parameters_without_counterpart"] == 1
     assert rows["d"]["parameters_covered"] == {} and rows["d"]["parameters_without_counterpart"] == 0
     assert s["parameter_coverage"] == 0.5 and s["n_parameters_scored"] == 2
+    # a label without the effect's parameters (a ROSS case of the own generator): no counterpart, no crash
+    bare = score([hit], {"a": {k: v for k, v in lab.items() if k != "effects_params"}})
+    assert bare["rows"][0]["parameters_covered"] == {} and bare["n_parameters_without_counterpart"] == 1
