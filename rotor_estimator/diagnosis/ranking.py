@@ -630,8 +630,12 @@ def _refit_base(ctx: FitContext, b: EffectFit) -> EffectFit:
 
 
 def _physical_std(effect: Effect, nl, nl_std, lin, lin_cov, draws: int = 200) -> dict:
-    """Standard deviations of the physical parameters by Monte Carlo over the parameter covariance."""
+    """Standard deviations of the physical parameters by Monte Carlo over the parameter covariance. An angle
+    (a name ending in ``_deg``) is spread on the circle: its draws' deviations from the estimate are wrapped
+    to (-180, 180] before their std is taken (a phase near 180 deg gave draws on both sides of the wrap, and
+    a std of 177 deg for a phase known to 0.4 deg)."""
     rng = np.random.default_rng(0)
+    centre = effect.physical(nl, lin)
     samples = []
     for _ in range(draws):
         nl_d = nl + rng.standard_normal(nl.shape) * nl_std
@@ -641,7 +645,13 @@ def _physical_std(effect: Effect, nl, nl_std, lin, lin_cov, draws: int = 200) ->
             lin_d = lin
         samples.append(effect.physical(nl_d, lin_d))
     keys = samples[0].keys() if samples else ()
-    return {k: float(np.nanstd([s.get(k, np.nan) for s in samples])) for k in keys}
+    out = {}
+    for k in keys:
+        v = np.array([s.get(k, np.nan) for s in samples], dtype=float)
+        if k.endswith("_deg") and np.isfinite(centre.get(k, np.nan)):
+            v = (v - centre[k] + 180.0) % 360.0 - 180.0
+        out[k] = float(np.nanstd(v))
+    return out
 
 
 def _joint_parameters(single: EffectFit, pair: EffectFit, effect: Effect) -> EffectFit:

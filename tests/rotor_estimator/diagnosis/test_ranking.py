@@ -258,3 +258,21 @@ def test_strong_misalignment_with_near_limit_skew_is_the_pair_not_runout():
     skew_fit = rk.second if rk.second.name == "timing_skew" else rk.best
     skew = [skew_fit.physical[f"skew_{c}_s"] for c in ("yp1", "xp2", "yp2")]
     assert np.allclose(skew, effects.skew_s, atol=10e-6), skew
+
+
+def test_a_phase_near_the_wrap_keeps_its_small_std():
+    """An unbalance phase of 179.9 deg known to about 0.3 deg: its Monte Carlo draws fall on both sides of
+    +-180, and their std on the circle is the small one (the linear std was about 177 deg); the same
+    unbalance turned to 90 deg gives the same std within its Monte Carlo scatter (no dependence on the wrap)."""
+    from rotor_estimator.diagnosis.effects.residual_unbalance import ResidualUnbalance
+    from rotor_estimator.diagnosis.ranking import _physical_std
+
+    size = 18.0
+    cov = np.eye(4) * 0.1 ** 2  # g mm, per component: 0.1 / 18 rad = 0.32 deg
+    stds = []
+    for phase in (np.radians(179.9), np.radians(90.0)):
+        u = size * np.array([np.cos(phase), np.sin(phase)] * 2)
+        stds.append(_physical_std(ResidualUnbalance(), np.zeros(0), np.zeros(0), u, cov)["plane1_phase_deg"])
+    expected = np.degrees(0.1 / size)
+    assert stds[0] == pytest.approx(expected, rel=0.2)
+    assert stds[0] == pytest.approx(stds[1], rel=0.1)
