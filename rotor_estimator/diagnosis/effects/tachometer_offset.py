@@ -32,10 +32,13 @@ class TachometerOffset(Effect):
         return ()
 
     def nl_grid(self, ctx):
-        return [np.array([v]) for v in (-0.3, -0.1, 0.1, 0.3)]
+        # small offsets finely, and the rest of the circle: a mark may sit anywhere on the shaft
+        return [np.array([v]) for v in (-0.3, -0.1, 0.1, 0.3, -np.pi / 2, np.pi / 2, np.pi)]
 
     def nl_bounds(self, ctx):
-        return np.array([-np.pi / 2]), np.array([np.pi / 2])
+        # the whole circle, with room on both sides so that an offset near +-180 deg is not held at a bound
+        # (the optimizer moves on the unwrapped angle; :meth:`physical` wraps it)
+        return np.array([-2 * np.pi]), np.array([2 * np.pi])
 
     def basis(self, ctx, nl):
         shifted = imbalance_force(ctx.mats, ctx.shaft.angle_rad + nl[0], ctx.shaft.speed_rad_s,
@@ -43,4 +46,4 @@ class TachometerOffset(Effect):
         return ctx.response(shifted - ctx.known_smooth_n), np.zeros((ctx.t_s.size, 4, 0))
 
     def physical(self, nl, lin):
-        return {"offset_deg": float(np.degrees(nl[0]))}
+        return {"offset_deg": float((np.degrees(nl[0]) + 180.0) % 360.0 - 180.0)}

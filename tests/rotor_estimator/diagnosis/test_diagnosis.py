@@ -63,6 +63,11 @@ CASES = [
      lambda f: np.allclose(f.lin, [2.0, 1.0, -1.5, 1.0], atol=0.25)),
     ("tach_offset", HiddenEffects(tach_offset_rad=0.08), True,
      lambda f: abs(f.physical["offset_deg"] - math.degrees(0.08)) < 0.6),
+    # a mark anywhere on the shaft: 160 deg and -170 deg off (the search once stopped at +-90 deg)
+    ("tach_offset", HiddenEffects(tach_offset_rad=math.radians(160.0)), True,
+     lambda f: abs(f.physical["offset_deg"] - 160.0) < 0.6),
+    ("tach_offset", HiddenEffects(tach_offset_rad=math.radians(-170.0)), True,
+     lambda f: abs((f.physical["offset_deg"] + 170.0 + 180.0) % 360.0 - 180.0) < 0.6),
     ("probe_runout", HiddenEffects(runout_m=RUNOUT), False,
      lambda f: np.allclose(f.lin.reshape(4, 4, 2)[:, 1:3, :], RUNOUT[:, 1:3, :] * 1e6, atol=0.1)),
     ("misalignment", HiddenEffects(misalignment_n=(10.0, 5.0, -4.0, 8.0), preload_n=(20.0, -10.0)), False,
