@@ -244,18 +244,17 @@ def score_by_generator(results: list[dict], labels: dict, rigs: dict | None = No
 
 
 def rig_facts(case_dir: str | Path) -> tuple[tuple[float, float], float] | None:
-    """``(correction planes m, sample rate Hz)`` of a case's rig file, as the unbalance effect takes its planes
-    (:func:`.effects.base.unbalance_planes`); ``None`` when the file cannot be read."""
+    """``(correction planes m, sample rate Hz)`` of a case's rig file, the planes by the unbalance effect's own rule
+    (:func:`.effects.base.rig_unbalance_planes`); ``None`` when the file cannot be read."""
     from rotor_estimator.core.config import load_rig_file
     from rotor_estimator.core.errors import ConfigError
+    from rotor_estimator.diagnosis.effects.base import rig_unbalance_planes
 
     try:
         rig = load_rig_file(Path(case_dir) / "rig.yaml").rig
     except (OSError, ConfigError, InputError):
         return None
-    planes = sorted({u.axial_position_m for u in rig.imbalances})
-    pair = (planes[0], planes[-1]) if len(planes) >= 2 else (rig.bearing1_position_m, rig.bearing2_position_m)
-    return pair, float(rig.sample_rate_hz)
+    return rig_unbalance_planes(rig), float(rig.sample_rate_hz)
 
 
 def format_score(s: dict) -> str:

@@ -29,8 +29,8 @@ import math
 
 import numpy as np
 
-CHANNELS = ("xp1", "yp1", "xp2", "yp2")
-BEARINGS = ("b1", "b2")
+from rotor_estimator.diagnosis.effects.base import CHANNELS  # the library's parameter names are the targets
+from rotor_estimator.diagnosis.effects.misalignment import BEARINGS
 
 
 def lever_rule(moment_kg_m: complex, station_m: float, planes_m: tuple[float, float]) -> tuple[complex, complex]:

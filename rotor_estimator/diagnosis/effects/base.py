@@ -22,6 +22,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from rotor_estimator.core.config import RigConfig
 from rotor_estimator.diagnosis import models
 from rotor_estimator.diagnosis.context import FitContext
 
@@ -150,9 +151,14 @@ def unbalance_force(ctx: FitContext, axial_position_m: float, phase_rad: float, 
     return models.point_generalized_force(ctx.rig, axial_position_m, fx, fy)
 
 
-def unbalance_planes(ctx: FitContext) -> tuple[float, float]:
-    """Correction planes: the rig's two imbalance planes, else the bearing stations."""
-    planes = sorted({u.axial_position_m for u in ctx.rig.imbalances})
+def rig_unbalance_planes(rig: RigConfig) -> tuple[float, float]:
+    """Correction planes (m) of a rig: its two outermost imbalance planes, else the bearing stations."""
+    planes = sorted({u.axial_position_m for u in rig.imbalances})
     if len(planes) >= 2:
         return planes[0], planes[-1]
-    return ctx.rig.bearing1_position_m, ctx.rig.bearing2_position_m
+    return rig.bearing1_position_m, rig.bearing2_position_m
+
+
+def unbalance_planes(ctx: FitContext) -> tuple[float, float]:
+    """Correction planes of the context's rig (:func:`rig_unbalance_planes`)."""
+    return rig_unbalance_planes(ctx.rig)
