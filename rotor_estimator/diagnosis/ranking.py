@@ -32,6 +32,7 @@ from rotor_estimator.diagnosis.context import nuisance_columns
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
                                               correlation_segment, spectral_covariance, held_out_rms,
                                               residual_after_fit, solve_linear)
+from rotor_estimator.diagnosis.secant_jacobian import least_squares_secant
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
 SIGNIFICANCE_DELTA_BIC = 30.0
@@ -57,6 +58,13 @@ REFINE_TOP = 9
 REFINE_NFEV = 12
 #: The same for the multi-start refits of the structural effects (short runs do not rank their basins).
 REFINE_NFEV_MULTISTART = 12
+#: Successive halving of the multi-start refits (:func:`_successive_halving`): trial points of the first round,
+#: the share of starts that continue, and the start count up to which every start simply runs in full (a
+#: flexible shaft has 15 structural starts, a pedestal 4 from the nominal fit and 4 from r0, most of them in
+#: basins that the first round already ranks low).
+HALVING_FIRST_NFEV = 4
+HALVING_KEEP = 1.0 / 3.0
+HALVING_MIN_STARTS = 3
 #: Leading singles on top of which every other effect is tried as a pair.
 PAIR_BASES = 3
 #: Best pairs refitted jointly with the coefficients.
@@ -394,6 +402,35 @@ def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, 
     return fun, lo, hi
 
 
+def _least_squares_or_none(fun, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int):
+    try:
+        return least_squares_secant(fun, x0, lo, hi, max_nfev=max_nfev)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+
+
+def _successive_halving(fun, lo: np.ndarray, hi: np.ndarray, x_starts: list[np.ndarray], max_nfev: int):
+    """Multi-start least squares by successive halving (Jamieson & Talwalkar 2016): every start runs
+    :data:`HALVING_FIRST_NFEV` trial points, the best :data:`HALVING_KEEP` of them (and at least two) continue
+    to ``max_nfev`` in all; with at most :data:`HALVING_MIN_STARTS` starts each simply runs ``max_nfev``.
+    Returns the final runs sorted by cost and every run made (the basins explored)."""
+    if len(x_starts) <= HALVING_MIN_STARTS or max_nfev <= HALVING_FIRST_NFEV:
+        runs = [r for r in (_least_squares_or_none(fun, x0, lo, hi, max_nfev) for x0 in x_starts) if r is not None]
+        return sorted(runs, key=lambda r: r.cost), list(runs)
+    first = [r for r in (_least_squares_or_none(fun, x0, lo, hi, HALVING_FIRST_NFEV) for x0 in x_starts)
+             if r is not None]
+    first.sort(key=lambda r: r.cost)
+    keep = max(2, int(np.ceil(HALVING_KEEP * len(first))))
+    final = []
+    for r in first[:keep]:
+        if r.status != 0:  # converged within the first round already
+            final.append(r)
+            continue
+        more = _least_squares_or_none(fun, r.x, lo, hi, max_nfev - HALVING_FIRST_NFEV)
+        final.append(r if more is None or more.cost > r.cost else more)
+    return sorted(final, key=lambda r: r.cost), first[keep:] + final
+
+
 def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
            reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = (),
            nl_starts: tuple[np.ndarray, ...] = (), start_pairs: tuple[tuple[np.ndarray, np.ndarray], ...] = (),
@@ -414,30 +451,19 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     starts += [(fit.coefficients, np.asarray(p, float)) for p in nl_starts]
     starts += [(np.asarray(r, float), np.asarray(p, float)) for r, p in start_pairs]
     starts = [(r if _stable(ctx, r) else ctx.coefficients, p) for r, p in starts]  # an unstable start cannot move
-    results = []
-    for r_start, nl_start in starts:
-        x0 = np.concatenate([np.asarray(r_start, float) / COEFFICIENT_SCALE, nl_start])
-        x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-        try:
-            results.append(least_squares(fun, x0, bounds=(lo, hi), diff_step=1e-4, max_nfev=max_nfev,
-                                         x_scale=1.0))
-        except (ValueError, np.linalg.LinAlgError):
-            continue
+    x_starts = [np.clip(np.concatenate([np.asarray(r, float) / COEFFICIENT_SCALE, p]), lo + 1e-9, hi - 1e-9)
+                for r, p in starts]
+    results, explored = _successive_halving(fun, lo, hi, x_starts, max_nfev)
     if not results:
         return best
-    explored = list(results)
-    results.sort(key=lambda r: r.cost)
     if len(starts) > 1 and polish_nfev > 0:  # the two best starts continued (a short run may not rank basins)
         polished = []
         for r in results[:2]:
             if r.status != 0:  # converged already
                 polished.append(r)
                 continue
-            try:
-                polished.append(least_squares(fun, r.x, bounds=(lo, hi), diff_step=1e-4, max_nfev=polish_nfev,
-                                              x_scale=1.0))
-            except (ValueError, np.linalg.LinAlgError):
-                polished.append(r)
+            more = _least_squares_or_none(fun, r.x, lo, hi, polish_nfev)
+            polished.append(r if more is None else more)
         results = sorted(polished, key=lambda r: r.cost)
         explored += polished
     res = results[0]
@@ -514,8 +540,8 @@ def profiled_coefficient_cov(ctx: FitContext, effect: Effect | None, coefficient
                     return fun(np.concatenate([x_hat[:8] + shift + basis @ q[:7], q[7:]]))
 
                 try:
-                    res = least_squares(constrained, np.clip(p, p_lo + 1e-9, p_hi - 1e-9), bounds=(p_lo, p_hi),
-                                        diff_step=1e-4, max_nfev=PROFILE_NFEV, x_scale=1.0)
+                    res = least_squares_secant(constrained, np.clip(p, p_lo + 1e-9, p_hi - 1e-9), p_lo, p_hi,
+                                               max_nfev=PROFILE_NFEV)
                 except (ValueError, np.linalg.LinAlgError):
                     break
                 z = float(np.sqrt(max(2.0 * res.cost - rss0, 0.0) / sigma2))
