@@ -59,9 +59,9 @@ REFINE_NFEV = 12
 #: The same for the multi-start refits of the structural effects (short runs do not rank their basins).
 REFINE_NFEV_MULTISTART = 12
 #: Successive halving of the multi-start refits (:func:`_successive_halving`): trial points of the first round,
-#: the share of starts that continue, and the start count up to which every start simply runs in full (a
-#: flexible shaft has 15 structural starts, a pedestal 4 from the nominal fit and 4 from r0, most of them in
-#: basins that the first round already ranks low).
+#: the share of starts that continue, and the start count up to which every start simply runs in full. A
+#: flexible shaft has 32 starts (15 structural ones, each from the nominal fit and from r0), a pedestal 10;
+#: most lie in basins that the first round already ranks low.
 HALVING_FIRST_NFEV = 4
 HALVING_KEEP = 1.0 / 3.0
 HALVING_MIN_STARTS = 3
