@@ -50,6 +50,25 @@ def test_stability_check_rejects_negative_damping():
     assert not _stable(ctx, bad)
 
 
+def test_unstable_start_moves_to_the_nearest_stable_point_towards_the_nominal_fit():
+    """An unstable start (negative direct damping) becomes a stable point on the segment to the context's
+    coefficients, short of them (it keeps part of the start); a stable start is left as it is."""
+    from rotor_estimator.core.model import rotor_matrices
+    from rotor_estimator.diagnosis.ranking import _stabilized
+
+    rig = load_rig_file().rig
+    r = rig.true_coefficients.as_array()
+    ctx = SimpleNamespace(mats=rotor_matrices(rig), mean_speed_rad_s=rig.speed_rad_s, coefficients=r)
+    assert np.array_equal(_stabilized(ctx, r * 1.1), r * 1.1)
+    bad = r.copy()
+    bad[4] = bad[7] = -abs(r[7])
+    moved = _stabilized(ctx, bad)
+    assert _stable(ctx, moved)
+    t = (moved[4] - bad[4]) / (r[4] - bad[4])
+    np.testing.assert_allclose(moved, bad + t * (r - bad), rtol=1e-12)  # on the segment
+    assert 0.0 < t < 1.0
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [31])
 def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
