@@ -44,6 +44,7 @@ class SecantJacobian:
         self._base: tuple[np.ndarray, np.ndarray] | None = None  # the last point the Jacobian refers to
         self._jac: np.ndarray | None = None
         self._steps_since_refresh = 0
+        self.last_was_secant = False  # whether the last Jacobian handed out was a secant update
         self.evaluations = 0          # calls of the residual, the forward differences' included
         self.difference_evaluations = 0
 
@@ -84,6 +85,7 @@ class SecantJacobian:
         refresh = (self._jac is None or self._base is None or rejected >= 1
                    or self._steps_since_refresh >= self._refresh_every
                    or self._jac.shape != (f.size, x.size))
+        self.last_was_secant = not refresh
         if refresh:
             self._jac = self._forward_difference(x, f)
             self._steps_since_refresh = 0
@@ -109,5 +111,15 @@ def least_squares_secant(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray
 
     sj = SecantJacobian(fun, lo, hi, rel_step=rel_step, refresh_every=refresh_every)
     res = least_squares(sj.fun, x0, jac=sj.jac, bounds=(lo, hi), max_nfev=max_nfev, x_scale=1.0)
-    res.evaluations = sj.evaluations
+    evaluations = sj.evaluations
+    left = max_nfev - int(res.nfev)
+    if res.status > 0 and sj.last_was_secant and left > 0:
+        # converged on a secant Jacobian: a tolerance met with an inexact model can be a stall (a keyphasor offset
+        # stopped 18 deg short), so the run continues from there on a fresh forward difference
+        again = SecantJacobian(fun, lo, hi, rel_step=rel_step, refresh_every=refresh_every)
+        more = least_squares(again.fun, res.x, jac=again.jac, bounds=(lo, hi), max_nfev=left, x_scale=1.0)
+        evaluations += again.evaluations
+        if more.cost <= res.cost:
+            res = more
+    res.evaluations = evaluations
     return res

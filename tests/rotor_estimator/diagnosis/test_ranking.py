@@ -301,7 +301,7 @@ def test_successive_halving_keeps_the_global_basin_for_fewer_evaluations():
     """Multi-start refits by successive halving: on a residual with a local minimum near every multiple of pi
     and a quadratic pull towards 6.5, the best run is the global minimum (found on a dense grid) and the
     starts cost fewer residual evaluations than running each in full."""
-    from rotor_estimator.diagnosis.ranking import _successive_halving
+    from rotor_estimator.diagnosis.ranking import HALVING_MIN_STARTS, _successive_halving
     from rotor_estimator.diagnosis.secant_jacobian import least_squares_secant
 
     calls = {"n": 0}
@@ -313,7 +313,8 @@ def test_successive_halving_keeps_the_global_basin_for_fewer_evaluations():
     grid = np.linspace(-1.0, 17.0, 180001)
     x_global = grid[np.argmin(4.0 * np.sin(grid) ** 2 + 0.09 * (grid - 6.5) ** 2)]
     lo, hi = np.array([-np.inf]), np.array([np.inf])
-    starts = [np.array([s]) for s in (0.2, 3.3, 9.0, 12.4, 15.6, 5.0)]
+    starts = [np.array([s]) for s in (0.2, 1.5, 3.3, 4.0, 5.0, 7.9, 9.0, 10.5, 12.4, 13.8, 15.6, 16.5)]
+    assert len(starts) > HALVING_MIN_STARTS  # halved, not every start run in full
     best, explored = _successive_halving(fun, lo, hi, starts, max_nfev=12)
     halving_calls, calls["n"] = calls["n"], 0
     assert best[0].x[0] == pytest.approx(x_global, abs=1e-4)
