@@ -15,6 +15,7 @@ projection); the nonlinear parameters are found by a grid then
 ``BIC = n ln(RSS/n) + k ln n`` of the Gaussian output error (smaller is better), where RSS includes
 the coefficient prior's 8 pseudo-observations (:class:`.context.CoefficientPrior`): every design carries
 them as 8 more rows on ``dr``, so each fit is a MAP fit and the criterion a penalized (log-posterior) one.
+An effect's linear parameters carry a magnitude prior the same way (:func:`linear_prior_weights`).
 """
 from __future__ import annotations
 
@@ -62,16 +63,49 @@ def prior_rows(ctx: FitContext, k: int) -> tuple[np.ndarray, np.ndarray]:
     return a, -ctx.prior.residual_m(ctx.coefficients)
 
 
+#: One sigma of the magnitude prior on an effect's linear parameters (:func:`linear_prior_weights`): the probe
+#: output one parameter alone moves, in RMS, as a multiple of the measured signal's RMS.
+LINEAR_PRIOR_SIGNAL_RATIO = 3.0
+
+
+def linear_prior_weights(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray:
+    """(k,) weights ``w_j`` of the pseudo-observations ``w_j theta_j`` (m) on an effect's linear gains: a
+    zero-mean Gaussian prior whose std ``s_j`` makes the gain's own output ``s_j x_j`` (column ``x_j``) carry
+    :data:`LINEAR_PRIOR_SIGNAL_RATIO` times the measured signal's RMS (DC removed), at the coefficient prior's
+    noise level: ``w_j = noise_std rms(x_j) / (ratio rms(y))``. A diagonal form of Zellner's g-prior scaled by
+    the data instead of the noise.
+
+    A physical effect's gains sit far inside it (an effect larger than the whole measured signal is not a
+    small augmentation of the model); what it stops is two effects cancelling each other at any size (a
+    runout of 2 cm against the response of 20 kg mm of unbalance, at a constant speed where the two are one
+    1X signal, was a pair's "fit" of a 30 um record).
+    """
+    if cols is None or cols.shape[2] == 0:
+        return np.zeros(0)
+    rows = ctx.mask
+    y = ctx.y_m[rows]
+    y_rms = float(np.sqrt(np.mean((y - y.mean(axis=0)) ** 2)))
+    col_rms = np.sqrt(np.mean(cols[rows] ** 2, axis=(0, 1)))
+    return ctx.prior.noise_std_m * col_rms / (LINEAR_PRIOR_SIGNAL_RATIO * max(y_rms, 1e-300))
+
+
 def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | None,
                  rows: np.ndarray | None = None) -> LinearSolution:
     """MAP least squares of ``y - y_nom - offset`` on ``[J, D, S, cols]`` over ``rows`` (default: ctx.mask),
-    with the coefficient prior's pseudo-observations (:func:`prior_rows`)."""
+    with the coefficient prior's pseudo-observations (:func:`prior_rows`) and the magnitude prior's on the
+    columns' gains (:func:`linear_prior_weights`)."""
     rows = ctx.mask if rows is None else rows
     full = _design(ctx, cols)
     target = ctx.y_m - ctx.y_nom_m - (0.0 if offset is None else offset)
     a_data = full[rows].reshape(-1, full.shape[2])
     b_data = target[rows].ravel()
     a_prior, b_prior = prior_rows(ctx, full.shape[2])
+    weights = linear_prior_weights(ctx, cols)
+    if weights.size:
+        a_gain = np.zeros((weights.size, full.shape[2]))
+        a_gain[:, full.shape[2] - weights.size:] = np.diag(weights)
+        a_prior = np.vstack([a_prior, a_gain])
+        b_prior = np.concatenate([b_prior, np.zeros(weights.size)])
     # normal equations of the data rows plus the prior's, columns unit-normed (summed, not stacked: a stacked
     # copy of a long record's design is ~100 MB)
     norm = np.sqrt(np.einsum("ij,ij->j", a_data, a_data) + np.einsum("ij,ij->j", a_prior, a_prior))
@@ -89,7 +123,8 @@ def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | 
     k0 = fixed_columns(ctx)
     return LinearSolution(dr=coef[:8], dc_m=coef[8:12], start_state=coef[12:k0], theta=coef[k0:],
                           theta_cov=cov[k0:, k0:], rss_m2=rss, n_obs=int(n_obs), prediction_m=pred,
-                          prior_m2=ctx.prior.penalty_m2(ctx.coefficients + coef[:8] * COEFFICIENT_SCALE))
+                          prior_m2=ctx.prior.penalty_m2(ctx.coefficients + coef[:8] * COEFFICIENT_SCALE)
+                          + float(np.sum((weights * coef[k0:]) ** 2)))
 
 
 #: Eigenvalues of the unit-column Gram matrix below this fraction of the largest are dropped by
@@ -119,17 +154,24 @@ def residual_after_fit(x: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 class Projector:
     """Orthogonal projection off the fixed columns ``[J, D, S, base]`` on ``rows`` and the coefficient prior's
-    8 pseudo-observation rows below them (:func:`prior_rows`; an effect's columns and offset are zero there),
-    QR computed once."""
+    8 pseudo-observation rows below them (:func:`prior_rows`), then the magnitude prior's on the base gains
+    (:func:`linear_prior_weights`; an effect's columns and offset are zero there), QR computed once. An
+    effect's own gains add their magnitude prior's rows at the end of :meth:`residual`."""
 
     def __init__(self, ctx: FitContext, base_cols: np.ndarray | None, rows: np.ndarray) -> None:
+        self.ctx = ctx
         full = _design(ctx, base_cols)
         a_prior, b_prior = prior_rows(ctx, full.shape[2])
+        weights = linear_prior_weights(ctx, base_cols)
+        self.n_prior = PRIOR_ROWS + weights.size
         self.index = np.flatnonzero(rows)
         m = self.index.size * 4
-        a = np.empty((m + PRIOR_ROWS, full.shape[2]))  # filled in place: one copy of the design, as without the prior
+        a = np.zeros((m + self.n_prior, full.shape[2]))  # filled in place: one copy of the design
         np.take(full, self.index, axis=0, out=a[:m].reshape(self.index.size, 4, full.shape[2]))
-        a[m:] = a_prior
+        a[m:m + PRIOR_ROWS] = a_prior
+        if weights.size:
+            a[m + PRIOR_ROWS:, full.shape[2] - weights.size:] = np.diag(weights)
+            b_prior = np.concatenate([b_prior, np.zeros(weights.size)])
         norm = np.sqrt(np.einsum("ij,ij->j", a, a))
         norm[norm == 0] = 1.0
         a /= norm
@@ -140,19 +182,26 @@ class Projector:
         return v - self.q @ (self.q.T @ v)
 
     def _rows(self, v: np.ndarray) -> np.ndarray:
-        """(N, 4[, k]) on every sample -> the design's rows, zero on the prior's."""
+        """(N, 4[, k]) on every sample -> the design's rows, zero on the priors'."""
         m = self.index.size * 4
-        out = np.empty((m + PRIOR_ROWS, *v.shape[2:]))
+        out = np.empty((m + self.n_prior, *v.shape[2:]))
         np.take(v, self.index, axis=0, out=out[:m].reshape(self.index.size, *v.shape[1:]))  # no second copy
         out[m:] = 0.0
         return out
 
+    def residual_size(self, n_cols: int) -> int:
+        """Length of :meth:`residual` with ``n_cols`` effect columns (data rows, prior rows, the columns' own)."""
+        return self.base_target.size + n_cols
+
     def residual(self, offset: np.ndarray | None, cols: np.ndarray | None) -> np.ndarray:
-        """Residual after eliminating the fixed and the effect's linear parameters."""
+        """Residual after eliminating the fixed and the effect's linear parameters (MAP: the effect's gains
+        carry their magnitude prior's rows, appended)."""
         b = self.base_target if offset is None else self.base_target - self._rows(offset)
         b = self._perp(b)
         if cols is not None and cols.shape[2]:
-            b = residual_after_fit(self._perp(self._rows(cols)), b)
+            weights = linear_prior_weights(self.ctx, cols)
+            x = np.vstack([self._perp(self._rows(cols)), np.diag(weights)])
+            b = residual_after_fit(x, np.concatenate([b, np.zeros(weights.size)]))
         return b
 
 

@@ -31,7 +31,7 @@ from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.context import nuisance_columns
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
                                               correlation_segment, spectral_covariance, held_out_rms,
-                                              residual_after_fit, solve_linear)
+                                              linear_prior_weights, residual_after_fit, solve_linear)
 from rotor_estimator.diagnosis.secant_jacobian import least_squares_secant
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
@@ -131,6 +131,8 @@ class EffectFit:
     #: (8, 8) covariance of :attr:`coefficients` (SI): the local sandwich one, widened along the directions the
     #: likelihood profile finds flatter than it (:func:`profiled_coefficient_cov`) for a verdict's fit
     coefficients_cov: np.ndarray = field(repr=False, default_factory=lambda: np.full((8, 8), np.nan))
+    #: A pair's net output over its larger member's (:func:`net_fraction`); 1 for a single effect
+    net_fraction: float = 1.0
 
     def summary(self) -> dict:
         return {"name": self.name, "delta_bic": round(self.delta_bic, 2), "bic": round(self.bic, 2),
@@ -193,6 +195,35 @@ def _parts(ctx: FitContext, effect: Effect, nl: np.ndarray, base: tuple[EffectFi
     return _sum([o for o, _ in parts]), _stack([c for _, c in parts], ctx.t_s.size), off, cols
 
 
+def _contribution(off: np.ndarray | None, cols: np.ndarray, gains: np.ndarray, n: int) -> np.ndarray:
+    """A member's output (N, 4): its offset plus its columns times its gains."""
+    out = np.zeros((n, 4)) if off is None else np.array(off, dtype=float)
+    if cols.shape[2]:
+        out = out + np.einsum("nck,k->nc", cols, gains)
+    return out
+
+
+def net_fraction(a_m: np.ndarray, b_m: np.ndarray, rows: np.ndarray) -> float:
+    """``||a + b|| / max(||a||, ||b||)`` of two members' outputs on ``rows`` (each channel's mean removed): near 0
+    when they cancel each other, 1 or more when they add or show apart (1 when both are zero)."""
+    def centred(v):
+        v = v[rows]
+        return v - v.mean(axis=0)
+
+    a, b = centred(a_m), centred(b_m)
+    larger = max(float(np.linalg.norm(a)), float(np.linalg.norm(b)))
+    return float(np.linalg.norm(a + b)) / larger if larger > 0 else 1.0
+
+
+#: A pair is selected only when its net output is at least this fraction of its larger member's
+#: (:func:`net_fraction`). Two members that cancel each other fit a residual by the difference of two large
+#: signals (a 1X runout of 2 cm against the response of 20 kg mm of unbalance; a 2X runout of 0.5 mm against
+#: 9 kN of misalignment force, on 30 um records without either); their parameters are then set by that
+#: difference, not by the physics they name. Members of unequal size (ratio 4:3 or more) never fall below it, nor
+#: do members at different frequencies; two equal ones at one frequency do when within 14 deg of opposite phase.
+MIN_PAIR_NET_FRACTION = 0.25
+
+
 def _carries_base(effect: Effect, base: tuple[EffectFit, ...]) -> bool:
     """True when ``effect`` is structural and a base member is a force it carries (the base moves with it)."""
     return type(effect).carrier is not Effect.carrier and any(b.effect is not None and b.effect.forcing for b in base)
@@ -253,8 +284,9 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
         def fun(p):
             b_off, b_cols, off, cols = _compose(ctx, effect, p, base_effects, *_parts(ctx, effect, p, base, fixed_base))
             if (off is not None and not np.all(np.isfinite(off[ctx.mask]))) or not np.all(np.isfinite(cols[ctx.mask])):
-                return np.full(proj.base_target.size, 10.0 * float(np.sqrt(np.mean(proj.base_target ** 2))) + 1e-12) \
-                    * RESIDUAL_SCALE
+                n_cols = cols.shape[2] + (b_cols.shape[2] if moving_base else 0)
+                return np.full(proj.residual_size(n_cols),
+                               10.0 * float(np.sqrt(np.mean(proj.base_target ** 2))) + 1e-12) * RESIDUAL_SCALE
             if moving_base:
                 return proj.residual(_sum([b_off, off]), _stack([b_cols, cols], n)) * RESIDUAL_SCALE
             return proj.residual(_sum([b_off, off]), cols) * RESIDUAL_SCALE
@@ -277,6 +309,9 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     all_off = _sum([b_off, t_off])
     all_cols = _stack([b_cols, t_cols], n)
     sol = solve_linear(ctx, all_off, all_cols)
+    k_b = b_cols.shape[2]
+    net = net_fraction(_contribution(b_off, b_cols, sol.theta[:k_b], n),
+                       _contribution(t_off, t_cols, sol.theta[k_b:], n), ctx.mask) if base else 1.0
     k_base = sum(b.n_params for b in base)
     k_eff = effect.n_params(ctx)
     lin = sol.theta[b_cols.shape[2]:]
@@ -310,7 +345,7 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
                      residual_rms_m=np.sqrt(np.mean(resid ** 2, axis=0)), coefficients=coefficients_after(ctx, sol),
                      prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect,
                      base_lin=sol.theta[:b_cols.shape[2]], base_lin_cov=base_lin_cov, lin_cov=lin_cov,
-                     coefficients_std=coefficients_std,
+                     coefficients_std=coefficients_std, net_fraction=net,
                      coefficients_cov=cov[:8, :8] * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE))
 
 
@@ -329,6 +364,9 @@ def parameter_covariance(ctx: FitContext, cols: np.ndarray, nl_sensitivity: np.n
                              nl_sensitivity], axis=2)[rows]
     precision = np.zeros(design.shape[2])
     precision[:8] = np.diag(ctx.prior.design_rows()) ** 2  # the coefficient prior (MAP): information on dr
+    weights = linear_prior_weights(ctx, cols)  # and the magnitude prior on the gains
+    k_lin = fixed_columns(ctx) + cols.shape[2]
+    precision[k_lin - weights.size:k_lin] = weights ** 2
     return spectral_covariance(design, (ctx.y_m - prediction_m)[rows], correlation_segment(ctx), precision)
 
 
@@ -388,12 +426,22 @@ def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, 
         if x_cols.shape[2]:
             xc = x_cols[rows]
             xc = (xc - xc.mean(axis=0)).reshape(-1, x_cols.shape[2])
-            b_vec = residual_after_fit(xc, b_vec)
+            # the effects' gains with their magnitude prior's rows (MAP; the start transient has none)
+            weights = linear_prior_weights(c2, x_cols[:, :, n_start:])
+            gain_rows = np.zeros((weights.size, x_cols.shape[2]))
+            gain_rows[:, n_start:] = np.diag(weights)
+            b_vec = residual_after_fit(np.vstack([xc, gain_rows]), np.concatenate([b_vec, np.zeros(weights.size)]))
+        b_vec = np.concatenate([b_vec, np.zeros(n_gains - (b_vec.size - n_data))])  # no gains: no rows
         # the coefficient prior's pseudo-observations (MAP), as in every other fit
         return np.concatenate([b_vec, ctx.prior.residual_m(x[:8] * COEFFICIENT_SCALE)]) * RESIDUAL_SCALE
 
     scale = float(np.sqrt(np.mean(ctx.y_m[rows] ** 2))) + 1e-12
-    _UNSTABLE = np.full(int(rows.sum()) * 4 + PRIOR_ROWS, 10.0 * scale)
+    n_start = ctx.start_columns_m.shape[2]
+    n_data = int(rows.sum()) * 4
+    # the magnitude prior's rows of every member's gains: a fixed count whatever the trial point
+    n_gains = 0 if effect is None else sum(len(e.lin_names(ctx)) for e in (effect, *(b.effect for b in base))
+                                           if e is not None)
+    _UNSTABLE = np.full(n_data + n_gains + PRIOR_ROWS, 10.0 * scale)
     _DIVERGED_M = 1e3 * scale  # a trial model whose output grows 1000x the data's is unstable, not a fit
     # direct damping cannot be negative in a passive bearing (the MAP point of a record without an impact,
     # where only the prior holds the coefficients, was seen at cxx = -350 N s/m)
@@ -893,10 +941,11 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             pairs[i] = refine(a.ctx or ctx, by_name[p.name], p, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV,
                               polish_nfev=0)
         pairs.sort(key=lambda f: f.bic)
-        # the selected pair: the smallest BIC among those that beat the top single by the threshold and
-        # predict the held-out span no worse
+        # the selected pair: the smallest BIC among those that beat the top single by the threshold, predict
+        # the held-out span no worse and whose members do not cancel each other
         cand = next((p for p in pairs if p.bic <= top.bic - threshold
-                     and predicts_held_out(p.held_out_rms_m, top.held_out_rms_m)), None)
+                     and predicts_held_out(p.held_out_rms_m, top.held_out_rms_m)
+                     and p.net_fraction >= MIN_PAIR_NET_FRACTION), None)
         if cand is not None:
             a_fit = next(f for f in singles if f.name == cand.base[0])
             say("coefficient uncertainty: likelihood profiles of the verdict's model")

@@ -113,12 +113,19 @@ def test_the_linear_solve_is_the_map_estimate_under_the_coefficient_prior():
     lam = np.zeros((15, 15))
     w = ctx.prior.noise_std_m * COEFFICIENT_SCALE / ctx.prior.std  # d pseudo-observation / d dr
     lam[:8, :8] = np.diag(w ** 2)
+    # the gains' magnitude prior: one gain's output carries LINEAR_PRIOR_SIGNAL_RATIO x the data's RMS at 1 sigma
+    from rotor_estimator.diagnosis.fitting import LINEAR_PRIOR_SIGNAL_RATIO
+
+    y_rms = np.sqrt(np.mean((ctx.y_m - ctx.y_m.mean(axis=0)) ** 2))
+    w_gain = ctx.prior.noise_std_m * np.sqrt(np.mean(cols ** 2, axis=(0, 1))) / (LINEAR_PRIOR_SIGNAL_RATIO * y_rms)
+    lam[12:, 12:] = np.diag(w_gain ** 2)
     target = np.zeros(15)
     target[:8] = w ** 2 * (ctx.prior.mean - ctx.coefficients) / COEFFICIENT_SCALE
     x = np.linalg.solve(a.T @ a + lam, a.T @ b + target)
     np.testing.assert_allclose(sol.dr, x[:8], rtol=1e-6, atol=1e-9 * np.max(np.abs(x[:8])))
+    np.testing.assert_allclose(sol.theta, x[12:], rtol=1e-6)
     after = ctx.coefficients + x[:8] * COEFFICIENT_SCALE
-    assert sol.prior_m2 == pytest.approx(ctx.prior.penalty_m2(after), rel=1e-6)
+    assert sol.prior_m2 == pytest.approx(ctx.prior.penalty_m2(after) + np.sum((w_gain * x[12:]) ** 2), rel=1e-6)
     projected = Projector(ctx, None, ctx.mask).residual(None, cols)
     assert float(projected @ projected) == pytest.approx(sol.rss_m2 + sol.prior_m2, rel=1e-6)
 
@@ -154,3 +161,37 @@ def test_a_prior_precision_shrinks_the_std_of_its_parameter_only():
     held = spectral_covariance(a, res, 240, np.array([1e6, 0, 0, 0, 0]))
     assert np.sqrt(held[0, 0]) < 0.01 * np.sqrt(free[0, 0])
     np.testing.assert_allclose(np.diag(held)[2:4], np.diag(free)[2:4], rtol=1e-6)
+
+
+def test_the_magnitude_prior_bounds_two_cancelling_gains_and_leaves_a_determined_gain_alone(monkeypatch):
+    """Bounds of the gains' magnitude prior. Two columns that differ by a trace (1e-4 of their size) and a
+    record that holds that trace: least squares cancels them at gains ~1e4 times the record's size; the MAP
+    gains each move the output by under 3 sigma of the prior (LINEAR_PRIOR_SIGNAL_RATIO x the data's RMS). A
+    well-determined gain (the record is 5 x one column plus noise) is the least-squares one within 1e-4."""
+    from rotor_estimator.diagnosis.fitting import LINEAR_PRIOR_SIGNAL_RATIO, solve_linear
+
+    rng = np.random.default_rng(21)
+    ctx = _stub_context(rng, np.full(8, 1.0))  # the coefficients held: only the gains move
+    t = np.arange(400)
+    base = np.zeros((400, 4))
+    base[:, 0] = np.cos(2 * np.pi * t / 37) * 1e-6
+    trace = np.zeros((400, 4))
+    trace[:, 1] = np.sin(2 * np.pi * t / 11) * 1e-10
+    cols = np.stack([base, base + trace], axis=2)
+    ctx.y_m = trace * 3e4 + rng.standard_normal((400, 4)) * 1e-7
+    a = cols.reshape(-1, 2)
+    ls, *_ = np.linalg.lstsq(a, ctx.y_m.ravel(), rcond=None)
+    assert np.max(np.abs(ls)) > 1e4
+    sol = solve_linear(ctx, None, cols)
+    y_rms = np.sqrt(np.mean((ctx.y_m - ctx.y_m.mean(axis=0)) ** 2))
+    own_rms = np.abs(sol.theta) * np.sqrt(np.mean(cols ** 2, axis=(0, 1)))
+    assert np.all(own_rms < 3 * LINEAR_PRIOR_SIGNAL_RATIO * y_rms), own_rms / y_rms
+
+    ctx.y_m = 5.0 * base + rng.standard_normal((400, 4)) * 1e-7
+    sol = solve_linear(ctx, None, cols[:, :, :1])
+    import rotor_estimator.diagnosis.fitting as fitting
+
+    monkeypatch.setattr(fitting, "LINEAR_PRIOR_SIGNAL_RATIO", 1e12)  # the same solve without the gains' prior
+    free = solve_linear(ctx, None, cols[:, :, :1])
+    assert sol.theta[0] == pytest.approx(5.0, rel=0.05)
+    assert sol.theta[0] == pytest.approx(free.theta[0], rel=1e-4)

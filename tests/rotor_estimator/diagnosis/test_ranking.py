@@ -322,3 +322,28 @@ def test_successive_halving_keeps_the_global_basin_for_fewer_evaluations():
     for s in starts:  # the same starts, each run in full
         least_squares_secant(fun, s, lo, hi, max_nfev=12)
     assert halving_calls < calls["n"]
+
+
+def test_net_fraction_flags_members_that_cancel_and_no_others():
+    """Bounds of the pair rule's measure: two members that cancel to 1 % give ~0.01; two at different
+    frequencies give ~1 whatever their phase; at one frequency, members of amplitude ratio 4:3 stay at or above
+    MIN_PAIR_NET_FRACTION at every relative phase (the documented bound), equal ones fall below it only within
+    about 14.4 deg of opposite phase; each channel's mean does not count."""
+    from rotor_estimator.diagnosis.ranking import MIN_PAIR_NET_FRACTION, net_fraction
+
+    t = np.arange(2000) / 2000.0
+    rows = np.ones(t.size, bool)
+
+    def tone(f_hz, amp, phase, dc=0.0):
+        return np.repeat((amp * np.cos(2 * np.pi * f_hz * t + phase) + dc)[:, None], 4, axis=1)
+
+    cancelling = net_fraction(tone(50, 1.0, 0.0, dc=5.0), tone(50, -0.99, 0.0, dc=-3.0), rows)
+    assert cancelling == pytest.approx(0.01, abs=1e-3)
+    for phase in np.linspace(0, 2 * np.pi, 13):
+        apart = net_fraction(tone(50, 1.0, 0.0), tone(100, 1.0, phase), rows)
+        assert apart == pytest.approx(np.sqrt(2), rel=1e-3)
+        assert net_fraction(tone(50, 1.0, 0.0), tone(50, 0.75, phase), rows) >= MIN_PAIR_NET_FRACTION - 1e-9
+    below = [abs(np.degrees(p) - 180.0) for p in np.linspace(0, 2 * np.pi, 721)
+             if net_fraction(tone(50, 1.0, 0.0), tone(50, 1.0, p), rows) < MIN_PAIR_NET_FRACTION]
+    assert 13.9 < max(below) < 14.4  # 2 asin(1/8) = 14.36 deg, on a 0.5 deg grid
+    assert net_fraction(np.zeros((10, 4)), np.zeros((10, 4)), np.ones(10, bool)) == 1.0
