@@ -133,6 +133,11 @@ class EffectFit:
     coefficients_cov: np.ndarray = field(repr=False, default_factory=lambda: np.full((8, 8), np.nan))
     #: A pair's net output over its larger member's (:func:`net_fraction`); 1 for a single effect
     net_fraction: float = 1.0
+    #: The local (sandwich) covariance of ``[base_lin, lin, nl]`` with the 8 coefficients (SI), and the local
+    #: coefficient covariance it goes with: what :func:`_parameters_widened` needs to carry a widened
+    #: coefficient covariance over to the effect's parameters (empty: not carried)
+    gain_coefficient_cov: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 8)))
+    local_coefficients_cov: np.ndarray = field(repr=False, default_factory=lambda: np.full((8, 8), np.nan))
 
     def summary(self) -> dict:
         return {"name": self.name, "delta_bic": round(self.delta_bic, 2), "bic": round(self.bic, 2),
@@ -330,6 +335,8 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
         nl_std = np.sqrt(np.abs(np.diag(cov[k_lin:, k_lin:])))
     physical = effect.physical(nl, lin)
     physical_std = _physical_std(effect, nl, nl_std, lin, lin_cov)
+    gains = np.r_[np.arange(k0, k_lin), np.arange(k_lin, cov.shape[0])]  # [base_lin, lin, nl]
+    gain_coefficient_cov = cov[np.ix_(gains, np.arange(8))] * COEFFICIENT_SCALE
     resid = (ctx.y_m - sol.prediction_m)[ctx.mask]
     rss = float(np.sum(resid ** 2))  # from the prediction itself: immune to an ill-conditioned solve
     b_val = bic(rss + sol.prior_m2, sol.n_obs, nominal_params(ctx) + k_base + k_eff)
@@ -346,7 +353,9 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
                      prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect,
                      base_lin=sol.theta[:b_cols.shape[2]], base_lin_cov=base_lin_cov, lin_cov=lin_cov,
                      coefficients_std=coefficients_std, net_fraction=net,
-                     coefficients_cov=cov[:8, :8] * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE))
+                     coefficients_cov=cov[:8, :8] * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE),
+                     gain_coefficient_cov=gain_coefficient_cov,
+                     local_coefficients_cov=cov[:8, :8] * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE))
 
 
 def parameter_covariance(ctx: FitContext, cols: np.ndarray, nl_sensitivity: np.ndarray,
@@ -637,6 +646,10 @@ def _with_basin_std(singles, pairs, best, second, tied):
         rss = min((b[1] for b in f.basins), default=float(f.rss_m2))
         n = min((b[2] for b in f.basins), default=int(f.n_obs))
         own = f.basins or (((f.coefficients, rss, n),) if others else ())  # its own optimum beside a tied one's
+        # the parameters move with the spread of this model's own optima (a tied model's coefficients are
+        # another model's: this one's parameters have no value there)
+        carried = _parameters_widened(replace(f, coefficients_cov=coefficients_cov_with_basins(f)))
+        f = replace(carried, coefficients_cov=f.coefficients_cov)
         g = replace(f, basins=own + tuple((o.coefficients, rss, n) for o in others))
         cov = coefficients_cov_with_basins(g)
         return replace(g, coefficients_cov=cov, coefficients_std=np.sqrt(np.abs(np.diag(cov))))
@@ -754,6 +767,38 @@ def _physical_std(effect: Effect, nl, nl_std, lin, lin_cov, draws: int = 200) ->
     return out
 
 
+def _parameters_widened(fit: EffectFit) -> EffectFit:
+    """``fit`` with its effect parameters' covariance carried over from its widened coefficient covariance.
+
+    The profile and the basins widen :attr:`EffectFit.coefficients_cov` from the local one ``C`` to ``C'``
+    where the likelihood is flatter than its curvature; the parameters that go with the coefficients move with
+    them. With the local joint covariance, the parameters' regression on the coefficients is ``K = X C^-1``
+    (``X``: :attr:`EffectFit.gain_coefficient_cov`), so their covariance grows by ``K (C' - C) K^T`` (the
+    conditional spread given the coefficients is kept). A fit with nothing to carry is returned unchanged.
+    """
+    x = np.asarray(fit.gain_coefficient_cov, float)
+    local = np.asarray(fit.local_coefficients_cov, float)
+    wide = np.asarray(fit.coefficients_cov, float)
+    k_base, k_lin, k_nl = fit.base_lin.size, fit.lin.size, fit.nl.size
+    if fit.effect is None or x.shape != (k_base + k_lin + k_nl, 8) or not x.size \
+            or not (np.all(np.isfinite(local)) and np.all(np.isfinite(wide)) and np.all(np.isfinite(x))):
+        return fit
+    w, v = np.linalg.eigh(0.5 * (wide - local + (wide - local).T))
+    if w.max(initial=0.0) <= 0.0:
+        return fit
+    grow = (v * np.clip(w, 0.0, None)) @ v.T  # the widening's positive part
+    k = x @ np.linalg.pinv(local, rcond=1e-12, hermitian=True)
+    extra = k @ grow @ k.T
+    lin_cov = fit.lin_cov + extra[k_base:k_base + k_lin, k_base:k_base + k_lin]
+    nl_std = np.sqrt(fit.nl_std ** 2 + np.clip(np.diag(extra)[k_base + k_lin:], 0.0, None))
+    base_lin_cov = fit.base_lin_cov + extra[:k_base, :k_base] if fit.base_lin_cov.shape == (k_base, k_base) \
+        else fit.base_lin_cov
+    lin_std = np.sqrt(np.abs(np.diag(lin_cov))) if k_lin else np.zeros(0)
+    return replace(fit, lin_cov=lin_cov, lin_std=lin_std, nl_std=nl_std, base_lin_cov=base_lin_cov,
+                   physical_std=_physical_std(fit.effect, fit.nl, nl_std, fit.lin, lin_cov),
+                   gain_coefficient_cov=np.zeros((0, 8)))  # carried once
+
+
 def _joint_parameters(single: EffectFit, pair: EffectFit, effect: Effect) -> EffectFit:
     """``single`` (its evidence and prediction kept) with its parameters as estimated jointly in ``pair``.
 
@@ -766,7 +811,8 @@ def _joint_parameters(single: EffectFit, pair: EffectFit, effect: Effect) -> Eff
         nl, nl_std, lin, lin_cov = single.nl, single.nl_std, pair.base_lin, pair.base_lin_cov
     lin_std = np.sqrt(np.abs(np.diag(lin_cov))) if lin.size else np.zeros(0)
     return replace(single, nl=nl, nl_std=nl_std, lin=lin, lin_std=lin_std, physical=effect.physical(nl, lin),
-                   physical_std=_physical_std(effect, nl, nl_std, lin, lin_cov))
+                   physical_std=_physical_std(effect, nl, nl_std, lin, lin_cov),
+                   gain_coefficient_cov=np.zeros((0, 8)))  # the pair's, carried over already
 
 
 @dataclass
@@ -949,7 +995,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         if cand is not None:
             a_fit = next(f for f in singles if f.name == cand.base[0])
             say("coefficient uncertainty: likelihood profiles of the verdict's model")
-            cand = _profiled(cand, a_fit.ctx or ctx, by_name[cand.name], (a_fit,))
+            cand = _parameters_widened(_profiled(cand, a_fit.ctx or ctx, by_name[cand.name], (a_fit,)))
             rank = {f.name: i for i, f in enumerate(singles)}
             a_name, b_name = cand.base[0], cand.name
             first, other = (a_name, b_name) if rank[a_name] <= rank[b_name] else (b_name, a_name)
@@ -958,7 +1004,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             best, o = joint[first], joint[other]
             second = replace(cand, name=other, base=(first,), delta_bic=best.bic - cand.bic, nl=o.nl,
                              nl_std=o.nl_std, lin=o.lin, lin_std=o.lin_std, physical=o.physical,
-                             physical_std=o.physical_std, n_params=o.n_params, effect=o.effect)
+                             physical_std=o.physical_std, n_params=o.n_params, effect=o.effect,
+                             gain_coefficient_cov=np.zeros((0, 8)))  # its parameters are the pair's, carried
     tied = []
     if best is not None and second is None:
         tied = [f for f in singles[1:] if f.delta_bic >= threshold and predicts_held_out(f.held_out_rms_m, ho0)

@@ -347,3 +347,32 @@ def test_net_fraction_flags_members_that_cancel_and_no_others():
              if net_fraction(tone(50, 1.0, 0.0), tone(50, 1.0, p), rows) < MIN_PAIR_NET_FRACTION]
     assert 13.9 < max(below) < 14.4  # 2 asin(1/8) = 14.36 deg, on a 0.5 deg grid
     assert net_fraction(np.zeros((10, 4)), np.zeros((10, 4)), np.ones(10, bool)) == 1.0
+
+
+def test_a_widened_coefficient_covariance_carries_over_to_the_effect_parameters():
+    """Agreement with the Gaussian conditional: gains u = A r + e with the local joint covariance, and the
+    coefficients' covariance widened from C to C + D by the basins, give cov(u) = cov_local(u) + A D A^T exactly
+    (and physical stds from it); a fit whose basins widen nothing, or whose carry-over is spent, is unchanged."""
+    from rotor_estimator.diagnosis.effects.residual_unbalance import ResidualUnbalance
+    from rotor_estimator.diagnosis.ranking import _parameters_widened, _with_basin_std
+
+    rng = np.random.default_rng(5)
+    c_local = np.diag(np.full(8, 1e3) ** 2)
+    a = rng.standard_normal((4, 8)) * 1e-3  # g mm per N/m
+    u_cov_local = a @ c_local @ a.T + np.eye(4) * 0.5 ** 2
+    best = np.full(8, 1e5)
+    d = np.linspace(-3e4, 4e4, 8)
+    fit = replace(_fit_with_basins(best, np.full(8, 1e3), [(best, 1e-9, 1000), (best + d, 1e-9, 1000)]),
+                  coefficients_cov=c_local, local_coefficients_cov=c_local, effect=ResidualUnbalance(),
+                  lin=np.array([10.0, 2.0, -3.0, 8.0]), lin_cov=u_cov_local, gain_coefficient_cov=a @ c_local)
+    widened = _with_basin_std([fit], [], None, None, [])[0][0]
+    expected = u_cov_local + a @ (np.outer(d, d) / 2) @ a.T
+    np.testing.assert_allclose(widened.lin_cov, expected, rtol=1e-9)
+    np.testing.assert_allclose(widened.lin_std, np.sqrt(np.diag(expected)), rtol=1e-9)
+    from rotor_estimator.diagnosis.ranking import _physical_std
+
+    direct = _physical_std(ResidualUnbalance(), fit.nl, fit.nl_std, fit.lin, expected)
+    assert widened.physical_std == pytest.approx(direct, rel=1e-9)
+    assert _parameters_widened(widened) is widened  # carried once
+    alone = replace(fit, basins=())
+    assert np.array_equal(_with_basin_std([alone], [], None, None, [])[0][0].lin_cov, u_cov_local)
