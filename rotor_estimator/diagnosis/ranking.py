@@ -200,6 +200,17 @@ def _parts(ctx: FitContext, effect: Effect, nl: np.ndarray, base: tuple[EffectFi
     return _sum([o for o, _ in parts]), _stack([c for _, c in parts], ctx.t_s.size), off, cols
 
 
+def _base_parts(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...]) -> tuple[np.ndarray | None, np.ndarray]:
+    """The ``base`` members' summed offset and stacked columns exactly as :func:`_parts` builds them beside
+    ``effect``, for an ``effect`` that carries no base force (:func:`_carries_base` false): then ``effect``'s
+    own structural model never carries a base member, and the base's do not depend on ``effect``'s parameters."""
+    forcing = effect.forcing or any(b.effect.forcing for b in base)
+    carriers = [c for c in (b.effect.carrier(ctx, b.nl) for b in base) if c is not None] if forcing else []
+    carrier = carriers[0] if len(carriers) == 1 else None
+    parts = [b.effect.basis(carrier if (carrier is not None and b.effect.forcing) else ctx, b.nl) for b in base]
+    return _sum([o for o, _ in parts]), _stack([c for _, c in parts], ctx.t_s.size)
+
+
 def _contribution(off: np.ndarray | None, cols: np.ndarray, gains: np.ndarray, n: int) -> np.ndarray:
     """A member's output (N, 4): its offset plus its columns times its gains."""
     out = np.zeros((n, 4)) if off is None else np.array(off, dtype=float)
@@ -401,27 +412,58 @@ def _nl_sensitivities(ctx: FitContext, effect: Effect, nl: np.ndarray, base, fix
     return np.where(np.isfinite(out), out, 0.0)
 
 
+#: Coefficient sets whose re-simulated context :func:`joint_misfit` keeps (a forward difference along an effect
+#: parameter, and the first trial points of multi-starts from one coefficient set, come back to the same ones).
+RECENT_COEFFICIENT_SETS = 12
+
+
+class _RecentCoefficients:
+    """The context re-simulated at a coefficient set (:func:`.context.with_coefficients`) and the ``base``
+    effects' offset and columns there, for the last :data:`RECENT_COEFFICIENT_SETS` sets (exact floats as key).
+    A pure cache: the same arrays as recomputing them."""
+
+    def __init__(self, ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, ...]) -> None:
+        self.ctx = ctx
+        self.effect = effect
+        self.base = base
+        self.entries: dict[bytes, tuple[FitContext, tuple[np.ndarray | None, np.ndarray] | None]] = {}
+
+    def get(self, coefficients: np.ndarray) -> tuple[FitContext, tuple[np.ndarray | None, np.ndarray] | None]:
+        from rotor_estimator.diagnosis.context import with_coefficients
+
+        key = np.asarray(coefficients, float).tobytes()
+        hit = self.entries.pop(key, None)
+        if hit is None:
+            c2 = with_coefficients(self.ctx, coefficients)
+            hit = (c2, _base_parts(c2, self.effect, self.base) if self.base else None)
+            if len(self.entries) >= RECENT_COEFFICIENT_SETS:
+                self.entries.pop(next(iter(self.entries)))
+        self.entries[key] = hit  # most recent last
+        return hit
+
+
 def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, ...] = ()):
     """``(fun, lo, hi)``: the exact (re-simulated, not linearized) residual of the 8 coefficients (scaled) and
     the effect's nonlinear parameters, the linear ones projected out, with the coefficient prior's rows (MAP),
     in micrometres; and its bounds. ``effect=None``: the nominal model's (the coefficients only). Shared by
     :func:`refine` and :func:`profiled_coefficient_cov`."""
-    from rotor_estimator.diagnosis.context import with_coefficients
-
     n = ctx.t_s.size
     rows = ctx.mask
+    # the base's offset and columns depend on the coefficients only, unless the effect carries a base force
+    base_is_fixed_shape = effect is not None and bool(base) and not _carries_base(effect, base)
+    at_coefficients = _RecentCoefficients(ctx, effect, base if base_is_fixed_shape else ())
 
     def fun(x):
         if not _stable(ctx, x[:8] * COEFFICIENT_SCALE):
             # a wall: the periodic re-simulation exists for an unstable rotor too, and a record without an
             # impact cannot tell them apart by their 1X (the MAP point of such a record was seen unstable)
             return _UNSTABLE * RESIDUAL_SCALE
-        c2 = with_coefficients(ctx, x[:8] * COEFFICIENT_SCALE)
+        c2, base_parts = at_coefficients.get(x[:8] * COEFFICIENT_SCALE)
         if effect is None:
             off, x_cols = None, c2.start_columns_m
         else:
             b_off, b_cols, o, c = _compose(c2, effect, x[8:], [(b.effect, b.nl) for b in base],
-                                           *_parts(c2, effect, x[8:], base))
+                                           *_parts(c2, effect, x[8:], base, base_parts))
             off = _sum([b_off, o])
             x_cols = _stack([c2.start_columns_m, b_cols, c], n)  # the start transient at these coefficients too
         target = c2.y_m - c2.y_nom_m - (0.0 if off is None else off)

@@ -376,3 +376,33 @@ def test_a_widened_coefficient_covariance_carries_over_to_the_effect_parameters(
     assert _parameters_widened(widened) is widened  # carried once
     alone = replace(fit, basins=())
     assert np.array_equal(_with_basin_std([alone], [], None, None, [])[0][0].lin_cov, u_cov_local)
+
+
+def test_joint_misfit_reuses_a_coefficient_sets_simulation_bit_for_bit():
+    """The joint refit's residual keeps the re-simulated model and the base's columns of recent coefficient sets
+    (a forward difference along a skew comes back to the same coefficients): a value computed from that cache
+    equals, to the bit, the one a fresh misfit computes from scratch, on both sides of the cache's eviction."""
+    from rotor_estimator.diagnosis.effects import Misalignment
+    from rotor_estimator.diagnosis.ranking import RECENT_COEFFICIENT_SETS, fit_effect, joint_misfit
+    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE
+
+    rf = load_rig_file()
+    rig = rf.rig
+    scenario = EffectScenario(speed_rad_s=rig.speed_rad_s, duration_s=0.1, lead_in_s=0.1,
+                              impacts=(Impact(0.03, 50e-6, 350.0, -300.0),), noise_std_m=1e-6,
+                              coefficients=rig.true_coefficients.as_array())
+    sim = simulate_with_effects(rig, scenario, HiddenEffects(misalignment_n=(-60.0, -50.0, 20.0, -65.0),
+                                                             skew_s=(70e-6, -90e-6, 60e-6)), seed=3)
+    ctx = build_context(sim.recording, rig, rf.estimator)
+    base = (fit_effect(ctx, Misalignment()),)
+    skew = TimingSkew()
+    cached, _, _ = joint_misfit(ctx, skew, base)
+    r = ctx.coefficients / COEFFICIENT_SCALE
+    # two skews at each coefficient set, each set one coefficient off r (a forward difference's steps), more sets
+    # than the cache keeps
+    steps = np.eye(8)[[(i // 2) % 8 for i in range(2 * (RECENT_COEFFICIENT_SETS + 4))]]
+    points = [np.concatenate([r + 1e-3 * (1 + i // 16) * step, np.full(len(skew.nl_names), 0.1 * i)])
+              for i, step in enumerate(steps)]
+    for x in points + points[::-1]:  # the second sweep hits the cache for the recent sets, misses for the old
+        fresh, _, _ = joint_misfit(ctx, skew, base)
+        assert np.array_equal(cached(x), fresh(x))
