@@ -22,6 +22,7 @@ starts in steady running needs no transient fit.
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Callable
 
@@ -162,11 +163,30 @@ def _discretized_blocks(build_a: Callable[[float], np.ndarray], b: np.ndarray, h
     return phi, g1, g2
 
 
+#: Inputs whose first-revolution phasors :func:`_first_revolutions_phasors` keeps (the diagnosis re-simulates the
+#: same few inputs, an effect's unit forces, at every trial coefficient set).
+RECENT_PHASORS = 256
+_recent_phasors: dict[bytes, np.ndarray] = {}
+_recent_phasors_lock = threading.Lock()
+
+
 def _first_revolutions_phasors(u_smooth: np.ndarray, angle_rad: np.ndarray, speed_rad_s: float,
                                h_s: float) -> np.ndarray:
-    """:func:`harmonic_phasors` of ``u_smooth`` over its first two revolutions (at least 8 samples)."""
+    """:func:`harmonic_phasors` of ``u_smooth`` over its first two revolutions (at least 8 samples), kept for the
+    last :data:`RECENT_PHASORS` inputs (keyed by the exact samples used: the same result as recomputing it)."""
     rev = min(max(8, int(round(2 * (2 * np.pi / max(speed_rad_s, 1e-6)) / h_s))), u_smooth.shape[0])
-    return harmonic_phasors(u_smooth[:rev], angle_rad[:rev])
+    u, angle = np.ascontiguousarray(u_smooth[:rev], dtype=float), np.ascontiguousarray(angle_rad[:rev], dtype=float)
+    key = u.tobytes() + angle.tobytes() + np.array(u.shape).tobytes()
+    with _recent_phasors_lock:  # a batch may diagnose in threads
+        phasors = _recent_phasors.pop(key, None)
+    if phasors is None:
+        phasors = harmonic_phasors(u, angle)
+    with _recent_phasors_lock:
+        _recent_phasors.pop(key, None)
+        if len(_recent_phasors) >= RECENT_PHASORS:
+            _recent_phasors.pop(next(iter(_recent_phasors)))
+        _recent_phasors[key] = phasors  # most recent last
+    return phasors.copy()
 
 
 def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,

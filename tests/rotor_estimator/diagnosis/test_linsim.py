@@ -66,3 +66,24 @@ def test_radial_bearing_force_matches_the_effects_own_and_has_no_value_or_tangen
         f = effect._force(dz, static_um)
         assert np.all(np.abs(f[0] - f[1]) / (2 * h) < 1e-5 * tangent)
     assert np.all(np.abs(effect._force(np.zeros((1, 4)), static_um)) < 1e-12 * tangent * 1e-6)
+
+
+def test_kept_first_revolution_phasors_equal_a_fresh_fit_and_cannot_be_altered_by_a_caller():
+    """The steady start's phasors are kept per input: a kept value equals harmonic_phasors of the same samples
+    to the bit, another input (one sample changed) gets its own, and a caller writing into the returned array
+    does not change what the next caller gets."""
+    from rotor_estimator.diagnosis.linsim import _first_revolutions_phasors, harmonic_phasors
+
+    h, speed = 1e-4, 2 * np.pi * 100.0
+    angle = speed * h * np.arange(400)
+    u = np.stack([np.cos(angle + k) + 0.1 * np.cos(2 * angle) for k in range(4)], axis=1)
+    rev = int(round(2 * (2 * np.pi / speed) / h))
+    fresh = harmonic_phasors(u[:rev], angle[:rev])
+    first = _first_revolutions_phasors(u, angle, speed, h)
+    first[:] = 0.0
+    again = _first_revolutions_phasors(u, angle, speed, h)
+    assert np.array_equal(again, fresh)
+    other = u.copy()
+    other[3, 2] += 1e-9
+    assert np.array_equal(_first_revolutions_phasors(other, angle, speed, h), harmonic_phasors(other[:rev], angle[:rev]))
+    assert not np.array_equal(_first_revolutions_phasors(other, angle, speed, h), fresh)
