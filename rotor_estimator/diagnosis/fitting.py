@@ -89,6 +89,15 @@ def linear_prior_weights(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray
     return ctx.prior.noise_std_m * col_rms / (LINEAR_PRIOR_SIGNAL_RATIO * max(y_rms, 1e-300))
 
 
+def gain_prior_rows(weights: np.ndarray, n_columns: int) -> np.ndarray:
+    """The magnitude prior's pseudo-observation rows (k, ``n_columns``) on a design whose last k = ``weights.size``
+    columns are an effect's gains (:func:`linear_prior_weights`): ``diag(weights)`` there, zero elsewhere. Their
+    target is zero (a zero-mean prior)."""
+    rows = np.zeros((weights.size, n_columns))
+    rows[:, n_columns - weights.size:] = np.diag(weights)
+    return rows
+
+
 def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | None,
                  rows: np.ndarray | None = None) -> LinearSolution:
     """MAP least squares of ``y - y_nom - offset`` on ``[J, D, S, cols]`` over ``rows`` (default: ctx.mask),
@@ -102,9 +111,7 @@ def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | 
     a_prior, b_prior = prior_rows(ctx, full.shape[2])
     weights = linear_prior_weights(ctx, cols)
     if weights.size:
-        a_gain = np.zeros((weights.size, full.shape[2]))
-        a_gain[:, full.shape[2] - weights.size:] = np.diag(weights)
-        a_prior = np.vstack([a_prior, a_gain])
+        a_prior = np.vstack([a_prior, gain_prior_rows(weights, full.shape[2])])
         b_prior = np.concatenate([b_prior, np.zeros(weights.size)])
     # normal equations of the data rows plus the prior's, columns unit-normed (summed, not stacked: a stacked
     # copy of a long record's design is ~100 MB)
@@ -170,7 +177,7 @@ class Projector:
         np.take(full, self.index, axis=0, out=a[:m].reshape(self.index.size, 4, full.shape[2]))
         a[m:m + PRIOR_ROWS] = a_prior
         if weights.size:
-            a[m + PRIOR_ROWS:, full.shape[2] - weights.size:] = np.diag(weights)
+            a[m + PRIOR_ROWS:] = gain_prior_rows(weights, full.shape[2])
             b_prior = np.concatenate([b_prior, np.zeros(weights.size)])
         norm = np.sqrt(np.einsum("ij,ij->j", a, a))
         norm[norm == 0] = 1.0
@@ -200,7 +207,7 @@ class Projector:
         b = self._perp(b)
         if cols is not None and cols.shape[2]:
             weights = linear_prior_weights(self.ctx, cols)
-            x = np.vstack([self._perp(self._rows(cols)), np.diag(weights)])
+            x = np.vstack([self._perp(self._rows(cols)), gain_prior_rows(weights, weights.size)])
             b = residual_after_fit(x, np.concatenate([b, np.zeros(weights.size)]))
         return b
 

@@ -30,8 +30,8 @@ from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, PRIOR_ROWS, Fit
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.context import nuisance_columns
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
-                                              correlation_segment, spectral_covariance, held_out_rms,
-                                              linear_prior_weights, residual_after_fit, solve_linear)
+                                              correlation_segment, gain_prior_rows, spectral_covariance,
+                                              held_out_rms, linear_prior_weights, residual_after_fit, solve_linear)
 from rotor_estimator.diagnosis.secant_jacobian import least_squares_secant
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
@@ -479,9 +479,8 @@ def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, 
             xc = (xc - xc.mean(axis=0)).reshape(-1, x_cols.shape[2])
             # the effects' gains with their magnitude prior's rows (MAP; the start transient has none)
             weights = linear_prior_weights(c2, x_cols[:, :, n_start:])
-            gain_rows = np.zeros((weights.size, x_cols.shape[2]))
-            gain_rows[:, n_start:] = np.diag(weights)
-            b_vec = residual_after_fit(np.vstack([xc, gain_rows]), np.concatenate([b_vec, np.zeros(weights.size)]))
+            b_vec = residual_after_fit(np.vstack([xc, gain_prior_rows(weights, x_cols.shape[2])]),
+                                       np.concatenate([b_vec, np.zeros(weights.size)]))
         b_vec = np.concatenate([b_vec, np.zeros(n_gains - (b_vec.size - n_data))])  # no gains: no rows
         # the coefficient prior's pseudo-observations (MAP), as in every other fit
         return np.concatenate([b_vec, ctx.prior.residual_m(x[:8] * COEFFICIENT_SCALE)]) * RESIDUAL_SCALE
