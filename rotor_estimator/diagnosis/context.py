@@ -276,6 +276,41 @@ def with_coefficients(ctx: "FitContext", coefficients: np.ndarray) -> "FitContex
                                                  estimated=ctx.start_transient), _cache={})
 
 
+def rigid_model_is_stable(mats: RotorMatrices, coefficients: np.ndarray, speed_rad_s: float) -> bool:
+    """True when the rigid rotor on bearings ``coefficients`` (Eq. 2) is asymptotically stable at ``speed_rad_s``
+    (every eigenvalue of its state matrix in the open left half-plane)."""
+    try:
+        a = models.rigid_state_matrix(mats, np.asarray(coefficients, float), speed_rad_s)
+        return bool(np.all(np.isfinite(a)) and np.max(np.linalg.eigvals(a).real) < 0.0)
+    except np.linalg.LinAlgError:
+        return False
+
+
+#: Steps along the line from an unstable start to a stable reference (:func:`stable_start`).
+STABILIZING_STEPS = 20
+
+
+def stable_start(mats: RotorMatrices, coefficients: np.ndarray, toward: np.ndarray, speed_rad_s: float) -> np.ndarray:
+    """``coefficients`` when the rigid model with them is stable, else the first stable point on the line from
+    them to ``toward`` in :data:`STABILIZING_STEPS` steps (``toward`` itself when none before it is)."""
+    r, target = np.asarray(coefficients, float), np.asarray(toward, float)
+    if rigid_model_is_stable(mats, r, speed_rad_s):
+        return r
+    for t in np.linspace(0.0, 1.0, STABILIZING_STEPS + 1)[1:]:
+        r_t = r + t * (target - r)
+        if rigid_model_is_stable(mats, r_t, speed_rad_s):
+            return r_t
+    return target
+
+
+def without_cross_coupling(coefficients: np.ndarray) -> np.ndarray:
+    """``coefficients`` with kxy = kyx = cxy = cyx = 0 and the direct terms' magnitudes: symmetric positive
+    stiffness and damping, a rotor stable at every speed (gyroscopic forces do no work: Kelvin-Tait-Chetaev)."""
+    r = np.abs(np.asarray(coefficients, float))
+    r[[1, 2, 5, 6]] = 0.0
+    return r
+
+
 def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np.ndarray, shaft: ShaftTrack,
                 schedule: SpeedSchedule, u_smooth: np.ndarray, u_step: np.ndarray, h_s: float, starts, *,
                 max_nfev: int, x_scale: float | None = None, start_transient: bool = False,
@@ -286,23 +321,36 @@ def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np
     that the LM tolerances mean something), with the ``prior``'s 8 pseudo-observations appended (MAP).
     Best of ``starts`` (N/m and N*s/m; non-finite or failing starts
     are skipped); ``None`` when none converges. ``max_nfev`` counts Jacobians (9 evaluations each).
-    ``x_scale``: scipy's (``None``, its default, or 1.0)."""
+    ``x_scale``: scipy's (``None``, its default, or 1.0).
+
+    The model must be stable at the record's mean speed (a wall where it is not, as in the joint refits):
+    the rig ran with a bounded response, and the periodic re-simulation exists for an unstable rotor too, so
+    a record without an impact could otherwise be fitted by one (seen: an independent 5-sample skew of one
+    probe plane, fitted with cxx = -670 N s/m and a mode growing at 73 1/s). An unstable start is moved
+    toward the first stable start, or toward the stable :func:`without_cross_coupling` form of the prior."""
+    speed_rad_s = float(np.mean(shaft.speed_rad_s[rows]))
+    wall = 1e3 * (float(np.sqrt(np.mean(y_m[rows] ** 2))) + 1e-12) * 1e6
+
     def residual(p):
         r = p * COEFFICIENT_SCALE
+        extra = np.zeros(0) if prior is None else prior.residual_m(r)
+        if not rigid_model_is_stable(mats, r, speed_rad_s):
+            return np.full(int(rows.sum()) * 4 + extra.size, wall)
         yn, _, _ = simulate_nominal(rig, mats, r, t_s, shaft, schedule, u_smooth, u_step, h_s)
         e = y_m - yn
-        extra = np.zeros(0) if prior is None else prior.residual_m(r)
         if not np.all(np.isfinite(e[rows])):
-            return np.full(int(rows.sum()) * 4 + extra.size,
-                           1e3 * (float(np.sqrt(np.mean(y_m[rows] ** 2))) + 1e-12)) * 1e6
+            return np.full(int(rows.sum()) * 4 + extra.size, wall)
         s = start_columns(mats, r, schedule, h_s, estimated=start_transient)
         return np.concatenate([(e - nuisance_fit(s, e, rows))[rows].ravel(), extra]) * 1e6
 
+    finite = [np.asarray(r0, dtype=float) for r0 in starts if np.all(np.isfinite(r0))]
+    if not finite:
+        return None
+    stable = [r0 for r0 in finite if rigid_model_is_stable(mats, r0, speed_rad_s)]
+    toward = stable[0] if stable else without_cross_coupling(prior.mean if prior is not None else finite[0])
     best = None
-    for r0 in starts:
-        p0 = np.asarray(r0, dtype=float) / COEFFICIENT_SCALE
-        if not np.all(np.isfinite(p0)):
-            continue
+    for r0 in finite:
+        p0 = stable_start(mats, r0, toward, speed_rad_s) / COEFFICIENT_SCALE
         try:
             res = least_squares(residual, p0, method="lm", x_scale=x_scale, diff_step=1e-4, max_nfev=max_nfev * 9)
         except (ValueError, np.linalg.LinAlgError):

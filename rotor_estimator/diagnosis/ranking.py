@@ -26,7 +26,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rotor_estimator.core.linear_filters import single_threaded_blas
-from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, PRIOR_ROWS, FitContext
+from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, PRIOR_ROWS, FitContext, rigid_model_is_stable,
+                                              stable_start)
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.context import nuisance_columns
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
@@ -742,23 +743,12 @@ _DIRECT_DAMPING = np.array([False] * 4 + [True, False, False, True])
 
 def _stable(ctx: FitContext, coefficients: np.ndarray) -> bool:
     """True when the nominal rigid model (Eq. 2) with ``coefficients`` is asymptotically stable at the mean speed."""
-    from rotor_estimator.core.model import state_matrix
-
-    try:
-        a = state_matrix(ctx.mats, np.asarray(coefficients, float), ctx.mean_speed_rad_s)
-        return bool(np.all(np.isfinite(a)) and np.max(np.linalg.eigvals(a).real) < 0.0)
-    except np.linalg.LinAlgError:
-        return False
-
-
-#: Steps along the line from an unstable start to the context's coefficients (:func:`_stabilized`).
-STABILIZING_STEPS = 20
+    return rigid_model_is_stable(ctx.mats, coefficients, ctx.mean_speed_rad_s)
 
 
 def _stabilized(ctx: FitContext, coefficients: np.ndarray) -> np.ndarray:
     """``coefficients`` when the rigid model with them is stable (:func:`_stable`), else the first stable point
-    on the line from them to the context's (the nominal fit's) coefficients, in :data:`STABILIZING_STEPS`
-    steps; the context's own when none is stable.
+    on the line from them to the context's (the nominal fit's) coefficients (:func:`stable_start`).
 
     A rig file's prior r0 is a rough guess and can be unstable at the running speed (a generic r0 with
     cross-coupled stiffness of the direct's size was, on ROSS records at 20 krpm). Replacing it by the nominal
@@ -767,14 +757,7 @@ def _stabilized(ctx: FitContext, coefficients: np.ndarray) -> np.ndarray:
     nearest r0 on the way keeps most of what r0 knows: the pedestal's refit from it recovered 39.8 Hz,
     damping ratio 0.089 and 5.5 kg against 40 Hz, 0.090 and 5.4 kg.
     """
-    r = np.asarray(coefficients, float)
-    if _stable(ctx, r):
-        return r
-    for t in np.linspace(0.0, 1.0, STABILIZING_STEPS + 1)[1:]:
-        r_t = r + t * (ctx.coefficients - r)
-        if _stable(ctx, r_t):
-            return r_t
-    return np.asarray(ctx.coefficients, float)
+    return stable_start(ctx.mats, coefficients, ctx.coefficients, ctx.mean_speed_rad_s)
 
 
 def _refit_base(ctx: FitContext, b: EffectFit) -> EffectFit:

@@ -14,7 +14,7 @@ from rotor_estimator.core.simulator import Scenario, paper_scenario, simulate
 def test_replay_rss_of_a_20_s_record_equals_that_of_a_1_s_record(tmp_path, cli_peak_rss):
     """Peak RSS of `replay` over 20 s of 20 kHz data (400 000 samples per plane, 2 passes) is within 10 MB
     of the peak over 1 s: anything kept per sample from 25 bytes up (three float64s) would show.
-    (Measured over 60 s: 218 MB and 220 MB; 20 s keeps the same per-sample bound at a third of the time.)"""
+    Measured over 60 s: 218 MB and 220 MB; 20 s keeps the same per-sample bound at a third of the time."""
     rig = load_rig_file().rig
     base = paper_scenario("imbalance+impact")
     peaks = {}

@@ -80,3 +80,28 @@ def test_nuisance_fit_is_the_least_squares_dc_and_start_transient_with_or_withou
         cols = nuisance_columns(start)
         coef, *_ = np.linalg.lstsq(cols[rows].reshape(-1, cols.shape[2]), err[rows].ravel(), rcond=None)
         assert np.allclose(nuisance_fit(start, err, rows), np.einsum("nck,k->nc", cols, coef), atol=1e-10)
+
+
+def test_bearings_without_cross_coupling_are_stable_at_every_speed_and_an_unstable_start_is_moved_to_stability():
+    """Kelvin-Tait-Chetaev: symmetric positive stiffness and damping with gyroscopic coupling is asymptotically
+    stable at any speed, so :func:`without_cross_coupling` of any coefficient set is a stable reference; and
+    :func:`stable_start` returns a stable point on the line to it from a start that is not."""
+    from rotor_estimator.core.model import rotor_matrices
+    from rotor_estimator.diagnosis.context import rigid_model_is_stable, stable_start, without_cross_coupling
+
+    rig = load_rig_file().rig
+    mats = rotor_matrices(rig)
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        r = rng.normal(0.0, 1.0, 8) * np.array([5e5] * 4 + [1e3] * 4)
+        speed = rng.uniform(0.0, 3.0) * rig.speed_rad_s
+        reference = without_cross_coupling(r)
+        assert rigid_model_is_stable(mats, reference, speed)
+        moved = stable_start(mats, r, reference, speed)
+        assert rigid_model_is_stable(mats, moved, speed)
+        if rigid_model_is_stable(mats, r, speed):
+            assert np.array_equal(moved, r)
+    # a strongly cross-coupled set (kxy = -kyx = 3 kxx) whirls unstably at the rig's speed
+    unstable = np.array([3e5, 9e5, -9e5, 3e5, 300.0, 0.0, 0.0, 300.0])
+    assert not rigid_model_is_stable(mats, unstable, rig.speed_rad_s)
+
