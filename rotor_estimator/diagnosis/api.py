@@ -16,7 +16,8 @@ import numpy as np
 from rotor_estimator.core.config import COEFFICIENT_NAMES_WITH_UNITS, EstimatorConfig, RigConfig
 from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.core.recording import RigRecording
-from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, WARMUP_S, FitContext, build_context
+from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, WARMUP_S, FitContext, build_context,
+                                              slowest_decay_rate_1_per_s)
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.effects.base import separating_measurements
 from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, TIE_LR_QUANTILE,
@@ -247,10 +248,17 @@ def data_accounting(recording: RigRecording, ctx: FitContext) -> dict:
                         "tracks and were left out")
     if impacts == 0:
         warnings.append(NO_IMPACT_WARNING)
+    decay = slowest_decay_rate_1_per_s(ctx.mats, ctx.coefficients, ctx.mean_speed_rad_s)
+    used_s = float(np.ptp(ctx.t_s[ctx.mask]))
+    if not decay * used_s > 1.0:
+        warnings.append(f"the nominal model sits at its stability limit (slowest mode decays at {decay:.3g} 1/s, less "
+                        f"than once over the {used_s:.3g} s fitted): a stable rotor on the 8 coefficients alone could "
+                        "not fit the record, so an unmodelled effect drags them and the nominal row is no bearing "
+                        "estimate")
     return {"samples": n, "samples_used": int(ctx.mask.sum()), "non_finite_probe_samples": int(non_finite.sum()),
             "outside_tachometer_span_samples": int(outside_tach.sum()),
             "warm_up_samples": int(np.sum(ctx.t_s < ctx.t_s[0] + WARMUP_S)), "impacts": impacts,
-            "warnings": warnings}
+            "nominal_slowest_decay_1_per_s": decay, "warnings": warnings}
 
 
 def _rms(e: np.ndarray, mask: np.ndarray) -> float:

@@ -286,6 +286,15 @@ def rigid_model_is_stable(mats: RotorMatrices, coefficients: np.ndarray, speed_r
         return False
 
 
+def slowest_decay_rate_1_per_s(mats: RotorMatrices, coefficients: np.ndarray, speed_rad_s: float) -> float:
+    """``-max Re(lambda)`` (1/s) of the rigid model's state matrix (Eq. 2): how fast its slowest mode decays
+    (negative when one grows; NaN when the matrix is not finite)."""
+    a = models.rigid_state_matrix(mats, np.asarray(coefficients, float), speed_rad_s)
+    if not np.all(np.isfinite(a)):
+        return float("nan")
+    return float(-np.max(np.linalg.eigvals(a).real))
+
+
 #: Steps along the line from an unstable start to a stable reference (:func:`stable_start`).
 STABILIZING_STEPS = 20
 
