@@ -149,14 +149,19 @@ class Diagnosis:
             text += f", or equally `{rk.tied[0].name}` (a tie: see the measurements that separate them)"
         return f"The gap is explained by {text}."
 
+    def verdict_row(self) -> dict:
+        """The table's row of the verdict's model (the nominal's when the verdict is none)."""
+        best, second = self.ranking.best, self.ranking.second
+        label = ("+ " + best.name + (" + " + second.name if second else "")) if best else "nominal"
+        return next((r for r in self.table if r["model"] == label), self.table[0])
+
     def summary(self) -> dict:
         ctx, rk = self.ctx, self.ranking
         before = _rms(ctx.y_m - self.nominal_prediction_m, ctx.mask)
         after = _rms(ctx.y_m - self.after_fit.prediction_m, ctx.mask) if self.after_fit else before
         best = rk.best
         top2 = [f.name for f in rk.singles[:2]]
-        final_label = ("+ " + best.name + (" + " + rk.second.name if rk.second else "")) if best else "nominal"
-        final_row = next((r for r in self.table if r["model"] == final_label), self.table[0])
+        final_row = self.verdict_row()
         if best is not None:
             top2 = [best.name, (rk.second.name if rk.second else
                                 next(f.name for f in rk.singles if f.name != best.name))]
@@ -285,7 +290,8 @@ def _row(ctx: FitContext, label: str, prediction: np.ndarray, held_out: float, c
             "excess_band_rms_m": {k: bands.get(k, 0.0) for k in ("1X", "2X", "3X", "nonsync_peaks", "broadband")},
             "output_nis_mean": nis, "held_out_rms_m": held_out,
             "coefficients": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, coefficients))),
-            "coefficients_std": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, coefficients_std)))}
+            "coefficients_std": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, coefficients_std))),
+            "slowest_decay_1_per_s": slowest_decay_rate_1_per_s(ctx.mats, coefficients, ctx.mean_speed_rad_s)}
 
 
 #: Longest stretch of a record the model fits run on (s). Their memory and time grow with the samples
@@ -368,5 +374,22 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
                                 f"{window['start_s']:.3f}-{window['stop_s']:.3f} s, {window['rule']} (memory and time "
                                 f"bound); diagnose other spans by cutting the record")
     source = recording.meta.get("source") if isinstance(getattr(recording, "meta", None), dict) else None
-    return Diagnosis(ctx=ctx, ranking=rk, where=where, innovations=innov, nominal_prediction_m=sol0.prediction_m,
-                     table=table, data=data, source=None if source is None else str(source))
+    found = Diagnosis(ctx=ctx, ranking=rk, where=where, innovations=innov, nominal_prediction_m=sol0.prediction_m,
+                      table=table, data=data, source=None if source is None else str(source))
+    if rk.best is not None:
+        data["warnings"] += unstable_verdict_warnings(found.verdict_row())
+    return found
+
+
+def unstable_verdict_warnings(row: dict) -> list[str]:
+    """A warning when a table row's coefficients make the rigid rotor unstable at the record's speed.
+
+    The effect fits linearize the model about a re-simulated coefficient set; a large linear step (a record
+    without an impact pins the coefficients down poorly) can leave it where the rotor is unstable, which the
+    rig's bounded response rules out."""
+    decay = row["slowest_decay_1_per_s"]
+    if decay > 0.0:
+        return []
+    return [f"the verdict's bearing coefficients make the rigid rotor unstable at the record's speed (slowest mode "
+            f"{decay:.3g} 1/s): they come from a linearized step the data do not pin down (often a record without "
+            "an impact); do not use them as bearing estimates"]

@@ -160,6 +160,7 @@ def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
     assert data["non_finite_probe_samples"] == 7 and data["impacts"] == 2
     assert data["samples_used"] <= data["samples"] - 7 - data["warm_up_samples"]
     assert data["warnings"] == ["7 probe sample(s) with a non-finite value were left out"]
+    assert all(row["slowest_decay_1_per_s"] > 1.0 / 0.22 for row in s["table"])  # every model decays in the record
     for f in ("report.md", "summary.json", "spectra.png", "orbits.png", "ranking.png"):
         assert (tmp_path / "rep" / f).exists()
     # a reader sees what was diagnosed and the finding first: the record's path, the rig, its speed, and one
@@ -271,3 +272,14 @@ def test_non_finite_impact_force_is_refused_before_any_fit(rig_file):
     rec = RigRecording(np.arange(n) * 50_000, np.zeros((n, 4)), np.arange(0, n * 50_000, 2_000_000), force)
     with pytest.raises(InputError, match="impact_force_n has 1 non-finite"):
         build_context(rec, rig_file.rig, rig_file.estimator)
+
+
+def test_a_verdict_whose_coefficients_make_the_rotor_unstable_is_flagged_and_a_stable_one_is_not():
+    """The rig ran with a bounded response: a verdict row whose rotor grows (or whose decay is not a number)
+    gets a warning naming the rate; a decaying one gets none."""
+    from rotor_estimator.diagnosis.api import unstable_verdict_warnings
+
+    assert unstable_verdict_warnings({"slowest_decay_1_per_s": 120.0}) == []
+    for rate in (-352.2, 0.0, float("nan")):
+        (warning,) = unstable_verdict_warnings({"slowest_decay_1_per_s": rate})
+        assert "unstable" in warning and f"{rate:.3g} 1/s" in warning
