@@ -253,17 +253,23 @@ def data_accounting(recording: RigRecording, ctx: FitContext) -> dict:
                         "tracks and were left out")
     if impacts == 0:
         warnings.append(NO_IMPACT_WARNING)
-    decay = slowest_decay_rate_1_per_s(ctx.mats, ctx.coefficients, ctx.mean_speed_rad_s)
-    used_s = float(np.ptp(ctx.t_s[ctx.mask]))
-    if not decay * used_s > 1.0:
-        warnings.append(f"the nominal model sits at its stability limit (slowest mode decays at {decay:.3g} 1/s, less "
-                        f"than once over the {used_s:.3g} s fitted): a stable rotor on the 8 coefficients alone could "
-                        "not fit the record, so an unmodelled effect drags them and the nominal row is no bearing "
-                        "estimate")
     return {"samples": n, "samples_used": int(ctx.mask.sum()), "non_finite_probe_samples": int(non_finite.sum()),
             "outside_tachometer_span_samples": int(outside_tach.sum()),
             "warm_up_samples": int(np.sum(ctx.t_s < ctx.t_s[0] + WARMUP_S)), "impacts": impacts,
-            "nominal_slowest_decay_1_per_s": decay, "warnings": warnings}
+            "warnings": warnings}
+
+
+def nominal_stability(ctx: FitContext) -> tuple[float, list[str]]:
+    """The nominal model's slowest decay rate (1/s) and a warning when the stability wall of the nominal fit
+    holds it at the limit (its slowest mode decays less than once over the fitted span)."""
+    decay = slowest_decay_rate_1_per_s(ctx.mats, ctx.coefficients, ctx.mean_speed_rad_s)
+    used_s = float(np.ptp(ctx.t_s[ctx.mask]))
+    if decay * used_s > 1.0:
+        return decay, []
+    return decay, [f"the nominal model sits at its stability limit (slowest mode decays at {decay:.3g} 1/s, less "
+                   f"than once over the {used_s:.3g} s fitted): a stable rotor on the 8 coefficients alone could "
+                   "not fit the record, so an unmodelled effect drags them and the nominal row is no bearing "
+                   "estimate"]
 
 
 def _rms(e: np.ndarray, mask: np.ndarray) -> float:
@@ -367,6 +373,8 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     for label, fit in shown:
         table.append(_row(ctx, label, fit.prediction_m, fit.held_out_rms_m, fit.coefficients, fit.coefficients_std))
     data = data_accounting(recording, ctx)
+    data["nominal_slowest_decay_1_per_s"], stability_warnings = nominal_stability(ctx)
+    data["warnings"] += stability_warnings
     if window is not None:
         data["analysis_window"] = window
         data["samples_in_record"] = full_n

@@ -113,10 +113,10 @@ def test_the_nominal_fit_of_a_record_an_unstable_rotor_fits_better_is_still_stab
     matched it better (cxx = -670 N s/m, a mode growing at 73 1/s, before the wall), but the rig ran with a
     bounded response, so the nominal model is asymptotically stable at the record's speed, and its prediction
     over the whole record stays of the size of the measured response. The wall holds it at the stability limit,
-    and the data accounting says so (the diagnose command's test sees no such warning on a record that needs no
+    and the diagnosis says so (the diagnose command's test sees no such warning on a record that needs no
     wall)."""
     from rotor_estimator.bench import independent
-    from rotor_estimator.diagnosis.api import data_accounting
+    from rotor_estimator.diagnosis.api import nominal_stability
     from rotor_estimator.diagnosis.context import build_context, rigid_model_is_stable
 
     case = independent.make_case("t", {"kind": "single", "form": "timing_skew:whole_sample_delay:one_plane"},
@@ -125,6 +125,6 @@ def test_the_nominal_fit_of_a_record_an_unstable_rotor_fits_better_is_still_stab
     ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)
     assert rigid_model_is_stable(ctx.mats, ctx.coefficients, ctx.mean_speed_rad_s), ctx.coefficients
     assert np.max(np.abs(ctx.y_nom_m)) < 3 * np.max(np.abs(ctx.y_m))
-    data = data_accounting(case.recording, ctx)
-    assert 0.0 < data["nominal_slowest_decay_1_per_s"] < 1.0 / 0.49
-    assert any("stability limit" in w for w in data["warnings"]), data["warnings"]
+    decay, warnings = nominal_stability(ctx)
+    assert 0.0 < decay < 1.0 / 0.49
+    assert len(warnings) == 1 and "stability limit" in warnings[0], warnings
