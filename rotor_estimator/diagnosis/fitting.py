@@ -99,16 +99,21 @@ def gain_prior_rows(weights: np.ndarray, n_columns: int) -> np.ndarray:
 
 
 def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | None,
-                 rows: np.ndarray | None = None) -> LinearSolution:
+                 rows: np.ndarray | None = None, *, hold_coefficients: bool = False) -> LinearSolution:
     """MAP least squares of ``y - y_nom - offset`` on ``[J, D, S, cols]`` over ``rows`` (default: ctx.mask),
     with the coefficient prior's pseudo-observations (:func:`prior_rows`) and the magnitude prior's on the
-    columns' gains (:func:`linear_prior_weights`)."""
+    columns' gains (:func:`linear_prior_weights`). ``hold_coefficients``: ``dr = 0`` (the coefficients stay at
+    the context's, an exact optimum's, instead of taking the linearized step)."""
     rows = ctx.mask if rows is None else rows
     full = _design(ctx, cols)
+    a_prior, b_prior = prior_rows(ctx, full.shape[2])
+    if hold_coefficients:  # zero columns: the pseudo-inverse below gives them a zero coefficient
+        full = full.copy()
+        full[:, :, :8] = 0.0
+        a_prior[:, :8] = 0.0
     target = ctx.y_m - ctx.y_nom_m - (0.0 if offset is None else offset)
     a_data = full[rows].reshape(-1, full.shape[2])
     b_data = target[rows].ravel()
-    a_prior, b_prior = prior_rows(ctx, full.shape[2])
     weights = linear_prior_weights(ctx, cols)
     if weights.size:
         a_prior = np.vstack([a_prior, gain_prior_rows(weights, full.shape[2])])
@@ -121,6 +126,8 @@ def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | 
     ata_inv = np.linalg.pinv(gram, rcond=1e-12, hermitian=True)
     coef_n = ata_inv @ ((a_data.T @ b_data + a_prior.T @ b_prior) / norm)
     coef = coef_n / norm
+    if hold_coefficients:
+        coef[:8] = 0.0  # exactly (the pseudo-inverse leaves rounding there)
     resid = b_data - a_data @ coef
     rss = float(resid @ resid)
     n_obs, k_all = a_data.shape
@@ -291,14 +298,14 @@ def bic(rss_m2: float, n_obs: int, n_params: int) -> float:
     return float(n_obs * np.log(max(rss_m2, 1e-300) / n_obs) + n_params * np.log(n_obs))
 
 
-def held_out_rms(ctx: FitContext, offset, cols) -> float:
+def held_out_rms(ctx: FitContext, offset, cols, *, hold_coefficients: bool = False) -> float:
     """Fit on the first part of the record, return the RMS error on the rest (m).
 
-    The coefficient correction ``dr`` is held at its full-record value: a first part
-    without an impact cannot separate a coefficient change from a per-channel 1X pattern
+    The coefficient correction ``dr`` is held at its full-record value (zero with ``hold_coefficients``): a
+    first part without an impact cannot separate a coefficient change from a per-channel 1X pattern
     (runout), and the check is about the effect's parameters, not the coefficients'.
     """
-    full = solve_linear(ctx, offset, cols)
+    full = solve_linear(ctx, offset, cols, hold_coefficients=hold_coefficients)
     fixed = np.einsum("nck,k->nc", ctx.jacobian, full.dr)
     off = fixed if offset is None else offset + fixed
     n = ctx.t_s.size
