@@ -261,15 +261,26 @@ def data_accounting(recording: RigRecording, ctx: FitContext) -> dict:
 
 def nominal_stability(ctx: FitContext) -> tuple[float, list[str]]:
     """The nominal model's slowest decay rate (1/s) and a warning when the stability wall of the nominal fit
-    holds it at the limit (its slowest mode decays less than once over the fitted span)."""
+    holds it at the limit (:func:`at_stability_limit`)."""
     decay = slowest_decay_rate_1_per_s(ctx.mats, ctx.coefficients, ctx.mean_speed_rad_s)
-    used_s = float(np.ptp(ctx.t_s[ctx.mask]))
-    if decay * used_s > 1.0:
+    used_s = fitted_span_s(ctx)
+    if not at_stability_limit(decay, used_s):
         return decay, []
     return decay, [f"the nominal model sits at its stability limit (slowest mode decays at {decay:.3g} 1/s, less "
                    f"than once over the {used_s:.3g} s fitted): a stable rotor on the 8 coefficients alone could "
                    "not fit the record, so an unmodelled effect drags them and the nominal row is no bearing "
                    "estimate"]
+
+
+def fitted_span_s(ctx: FitContext) -> float:
+    """Duration (s) of the samples the fits use."""
+    return float(np.ptp(ctx.t_s[ctx.mask]))
+
+
+def at_stability_limit(decay_1_per_s: float, span_s: float) -> bool:
+    """True when a model's slowest mode decays less than once (by e) over ``span_s``, grows, or its rate is not a
+    number: the rig ran with a bounded, settled response, which such a rotor does not explain."""
+    return not decay_1_per_s * span_s > 1.0
 
 
 def _rms(e: np.ndarray, mask: np.ndarray) -> float:
@@ -385,19 +396,22 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     found = Diagnosis(ctx=ctx, ranking=rk, where=where, innovations=innov, nominal_prediction_m=sol0.prediction_m,
                       table=table, data=data, source=None if source is None else str(source))
     if rk.best is not None:
-        data["warnings"] += unstable_verdict_warnings(found.verdict_row())
+        data["warnings"] += verdict_stability_warnings(found.verdict_row(), fitted_span_s(ctx))
     return found
 
 
-def unstable_verdict_warnings(row: dict) -> list[str]:
-    """A warning when a table row's coefficients make the rigid rotor unstable at the record's speed.
+def verdict_stability_warnings(row: dict, span_s: float) -> list[str]:
+    """A warning when a table row's coefficients put the rigid rotor at or beyond its stability limit at the
+    record's speed (:func:`at_stability_limit` over the fitted ``span_s``).
 
-    The effect fits linearize the model about a re-simulated coefficient set; a large linear step (a record
-    without an impact pins the coefficients down poorly) can leave it where the rotor is unstable, which the
-    rig's bounded response rules out."""
+    The joint refits wall unstable rotors off, so a verdict's optimum can sit on the wall (seen on a record
+    without an impact, whose steady 1X pins the coefficients down poorly): the data, through that effect's
+    model, pull toward a rotor the rig's bounded response rules out."""
     decay = row["slowest_decay_1_per_s"]
-    if decay > 0.0:
+    if not at_stability_limit(decay, span_s):
         return []
-    return [f"the verdict's bearing coefficients make the rigid rotor unstable at the record's speed (slowest mode "
-            f"{decay:.3g} 1/s): they come from a linearized step the data do not pin down (often a record without "
-            "an impact); do not use them as bearing estimates"]
+    return [f"the verdict's bearing coefficients put the rigid rotor at or beyond its stability limit at the "
+            f"record's speed (slowest mode {decay:.3g} 1/s, over {span_s:.3g} s fitted): the data do not pin them "
+            "down (often a record without an impact); do not use them as bearing estimates"]
+
+

@@ -274,12 +274,14 @@ def test_non_finite_impact_force_is_refused_before_any_fit(rig_file):
         build_context(rec, rig_file.rig, rig_file.estimator)
 
 
-def test_a_verdict_whose_coefficients_make_the_rotor_unstable_is_flagged_and_a_stable_one_is_not():
-    """The rig ran with a bounded response: a verdict row whose rotor grows (or whose decay is not a number)
-    gets a warning naming the rate; a decaying one gets none."""
-    from rotor_estimator.diagnosis.api import unstable_verdict_warnings
+def test_a_verdict_at_or_beyond_the_stability_limit_is_flagged_and_a_settled_one_is_not():
+    """The rig ran with a bounded, settled response: a verdict row whose rotor grows, does not decay by e over the
+    fitted span, or whose decay is not a number gets a warning naming the rate; one that settles gets none (the
+    same limit as the nominal's)."""
+    from rotor_estimator.diagnosis.api import at_stability_limit, verdict_stability_warnings
 
-    assert unstable_verdict_warnings({"slowest_decay_1_per_s": 120.0}) == []
-    for rate in (-352.2, 0.0, float("nan")):
-        (warning,) = unstable_verdict_warnings({"slowest_decay_1_per_s": rate})
-        assert "unstable" in warning and f"{rate:.3g} 1/s" in warning
+    assert verdict_stability_warnings({"slowest_decay_1_per_s": 120.0}, 0.4) == []
+    assert not at_stability_limit(2.6, 0.4)
+    for rate in (-352.2, 0.0, 4e-4, 2.4, float("nan")):
+        (warning,) = verdict_stability_warnings({"slowest_decay_1_per_s": rate}, 0.4)
+        assert "stability limit" in warning and f"{rate:.3g} 1/s" in warning
