@@ -288,7 +288,7 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     at ``nl0`` (an exact optimum's, :func:`refine`); only the linear ones are solved for. The coefficients'
     covariance is still the local one about the context.
     ``coupled_covariance``: the parameter covariance's design also carries the effect's own sensitivity to the
-    coefficients (:func:`effect_coefficient_sensitivity`; 8 re-simulations, so :func:`refine` asks for it).
+    coefficients (:func:`effect_coefficient_sensitivity`; 8 re-simulations, so only :func:`refine` asks for it).
     """
     n = ctx.t_s.size
     base_off = _sum([b.offset for b in base])
@@ -393,14 +393,15 @@ COUPLING_STEP = 1e-3
 def effect_coefficient_sensitivity(ctx: FitContext, effect: Effect, nl: np.ndarray, base: tuple[EffectFit, ...],
                                    base_effects: list[tuple[Effect, np.ndarray]], gains: np.ndarray) -> np.ndarray:
     """(N, 4, 8) derivative of the effect's output (with its ``base``, at fixed ``nl`` and ``gains``) in the 8
-    scaled coefficients, by forward differences over re-simulated contexts (:func:`.context.recentered`).
+    scaled coefficients, by forward differences over re-simulated nominal outputs (:func:`.context.with_coefficients`:
+    no effect's basis uses the nominal's sensitivities).
 
     The linearized design ``[J, D, S, X]`` takes the effect's columns ``X`` at the linearization point, so its
     coefficient columns ``J`` are the nominal's sensitivity only; the model's Gauss-Newton Jacobian in the
     coefficients is ``J + d(X theta)/dr``. A 2X force is seen through the rotor's dynamic stiffness, which the
     coefficients set: without this term the force's std ignored the coefficients' (0.15 N against 1.4-2.9 N
     of shift to the true coefficients, on an independent misalignment record)."""
-    from rotor_estimator.diagnosis.context import recentered
+    from rotor_estimator.diagnosis.context import with_coefficients
 
     n = ctx.t_s.size
 
@@ -415,7 +416,7 @@ def effect_coefficient_sensitivity(ctx: FitContext, effect: Effect, nl: np.ndarr
         shifted = ctx.coefficients.copy()
         shifted[i] += step * COEFFICIENT_SCALE[i]
         try:
-            out[:, :, i] = (output(recentered(ctx, shifted)) - y0) / step
+            out[:, :, i] = (output(with_coefficients(ctx, shifted)) - y0) / step
         except (ValueError, np.linalg.LinAlgError):
             continue  # left at zero: the design's own (uncoupled) column
     return np.where(np.isfinite(out), out, 0.0)
