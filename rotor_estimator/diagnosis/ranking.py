@@ -288,7 +288,8 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     at ``nl0`` (an exact optimum's, :func:`refine`); only the linear ones are solved for. The coefficients'
     covariance is still the local one about the context.
     ``coupled_covariance``: the parameter covariance's design also carries the effect's own sensitivity to the
-    coefficients (:func:`effect_coefficient_sensitivity`; 8 re-simulations, so only :func:`refine` asks for it).
+    coefficients (:func:`effect_coefficient_sensitivity`; 8 re-simulations of the effect, so only the reported
+    fits ask for it: :func:`with_coupled_covariance`).
     """
     n = ctx.t_s.size
     base_off = _sum([b.offset for b in base])
@@ -630,15 +631,13 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
         ctx_new = recentered(ctx, res.x[:8] * COEFFICIENT_SCALE)
         base_new = tuple(_refit_base(ctx_new, b) for b in base)
         nl0 = res.x[8:] if n_nl else None
-        new = fit_effect(ctx_new, effect, base_new, reference_bic=reference_bic, nl0=nl0, max_nfev=5,
-                         coupled_covariance=True)
+        new = fit_effect(ctx_new, effect, base_new, reference_bic=reference_bic, nl0=nl0, max_nfev=5)
         new_cost = exact_cost(fun, lo, hi, new)
         if not new_cost <= res.cost:
             # the linearized step from the exact optimum is not confirmed by re-simulating it (seen: a step
             # along a weakly identified direction of a record without an impact, to kxx = -44 kN/m and an
             # unstable rotor): the fit stays at the optimum itself
-            new = fit_effect(ctx_new, effect, base_new, reference_bic=reference_bic, nl0=nl0, hold_coefficients=True,
-                             coupled_covariance=True)
+            new = fit_effect(ctx_new, effect, base_new, reference_bic=reference_bic, nl0=nl0, hold_coefficients=True)
             new_cost = float(res.cost)
     except (ValueError, np.linalg.LinAlgError):
         return replace(best, basins=basins)
@@ -739,6 +738,31 @@ def profiled_or_local(ctx: FitContext, effect: Effect | None, coefficients: np.n
     except (ValueError, np.linalg.LinAlgError):
         return cov_si
     return cov if np.all(np.isfinite(cov)) else cov_si
+
+
+def with_coupled_covariance(fit: EffectFit | None, base: tuple[EffectFit, ...] = ()) -> EffectFit | None:
+    """``fit`` (its values and evidence kept) with the covariance of a fit that holds its coefficients and nonlinear
+    parameters and carries the effect's own sensitivity to the coefficients (:func:`fit_effect`'s
+    ``coupled_covariance``), about its own coefficients; ``fit`` unchanged when that refit fails. For the fits a
+    diagnosis reports (the search's hundreds of fits keep the cheaper uncoupled one)."""
+    if fit is None or fit.effect is None or fit.ctx is None:
+        return fit
+    from rotor_estimator.diagnosis.context import recentered
+
+    try:
+        ctx = fit.ctx
+        if not np.array_equal(fit.coefficients, ctx.coefficients):
+            ctx = recentered(ctx, fit.coefficients)
+        held = fit_effect(ctx, fit.effect, tuple(_refit_base(ctx, b) for b in base),
+                          nl0=fit.nl if fit.nl.size else None, hold_coefficients=True, coupled_covariance=True)
+    except (ValueError, np.linalg.LinAlgError):
+        return fit
+    if held.lin.shape != fit.lin.shape or held.base_lin.shape != fit.base_lin.shape:
+        return fit
+    return replace(fit, nl_std=held.nl_std, lin_std=held.lin_std, lin_cov=held.lin_cov, base_lin_cov=held.base_lin_cov,
+                   physical_std=_physical_std(fit.effect, fit.nl, held.nl_std, fit.lin, held.lin_cov),
+                   coefficients_std=held.coefficients_std, coefficients_cov=held.coefficients_cov,
+                   gain_coefficient_cov=held.gain_coefficient_cov, local_coefficients_cov=held.local_coefficients_cov)
 
 
 def _profiled(fit: EffectFit | None, ctx: FitContext, effect: Effect | None,
@@ -1093,6 +1117,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         if cand is not None:
             a_fit = next(f for f in singles if f.name == cand.base[0])
             say("coefficient uncertainty: likelihood profiles of the verdict's model")
+            cand = with_coupled_covariance(cand, (a_fit,))
             cand = _parameters_widened(_profiled(cand, a_fit.ctx or ctx, by_name[cand.name], (a_fit,)))
             rank = {f.name: i for i, f in enumerate(singles)}
             a_name, b_name = cand.base[0], cand.name
@@ -1110,7 +1135,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                 and indistinguishable(f, best)][:1]
     if best is not None and second is None:
         say("coefficient uncertainty: likelihood profiles of the verdict's model")
-        best = _profiled(best, best.ctx or ctx, best.effect)
+        best = _profiled(with_coupled_covariance(best), best.ctx or ctx, best.effect)
+        tied = [with_coupled_covariance(f) for f in tied]
     singles, pairs, best, second, tied = _with_basin_std(singles, pairs, best, second, tied)
     return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=singles,
                    best=best, second=second, pairs=pairs, tied=tied)

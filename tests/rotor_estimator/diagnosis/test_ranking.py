@@ -470,7 +470,7 @@ def test_the_covariance_predicts_how_2x_forces_move_with_the_coefficients_throug
     stiffness, which the coefficients set, so its std must carry theirs."""
     from rotor_estimator.diagnosis.context import recentered
     from rotor_estimator.diagnosis.effects import Misalignment
-    from rotor_estimator.diagnosis.ranking import fit_effect
+    from rotor_estimator.diagnosis.ranking import fit_effect, with_coupled_covariance
 
     rf = load_rig_file()
     rig = rf.rig
@@ -492,3 +492,8 @@ def test_the_covariance_predicts_how_2x_forces_move_with_the_coefficients_throug
         else:
             assert np.max(np.abs(moved) / fit.lin_std) > 3.0
             assert np.linalg.norm(predicted) < 0.2 * np.linalg.norm(moved), (predicted, moved)
+            # what a reported fit gets: the coupled covariance, its values and evidence untouched
+            reported = with_coupled_covariance(fit)
+            assert np.array_equal(reported.lin, fit.lin) and reported.bic == fit.bic
+            coupled_fit = fit_effect(recentered(ctx, r_off), effect, hold_coefficients=True, coupled_covariance=True)
+            np.testing.assert_allclose(reported.lin_cov, coupled_fit.lin_cov, rtol=1e-9)
