@@ -107,13 +107,12 @@ def solve_linear(ctx: FitContext, offset: np.ndarray | None, cols: np.ndarray | 
     rows = ctx.mask if rows is None else rows
     full = _design(ctx, cols)
     a_prior, b_prior = prior_rows(ctx, full.shape[2])
-    if hold_coefficients:  # zero columns: the pseudo-inverse below gives them a zero coefficient
-        full = full.copy()
-        full[:, :, :8] = 0.0
-        a_prior[:, :8] = 0.0
     target = ctx.y_m - ctx.y_nom_m - (0.0 if offset is None else offset)
-    a_data = full[rows].reshape(-1, full.shape[2])
+    a_data = full[rows].reshape(-1, full.shape[2])  # a copy (boolean rows)
     b_data = target[rows].ravel()
+    if hold_coefficients:  # zero columns: the pseudo-inverse below gives them a zero coefficient
+        a_data[:, :8] = 0.0
+        a_prior[:, :8] = 0.0
     weights = linear_prior_weights(ctx, cols)
     if weights.size:
         a_prior = np.vstack([a_prior, gain_prior_rows(weights, full.shape[2])])

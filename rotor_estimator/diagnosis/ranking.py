@@ -351,7 +351,8 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     cov_ctx = ctx
     if coupled_covariance:
         sens = effect_coefficient_sensitivity(ctx, effect, nl, base, base_effects, sol.theta)
-        cov_ctx = replace(ctx, jacobian=ctx.jacobian + sens)
+        sens += ctx.jacobian  # in place: a long record's (N, 4, 8) arrays count against its memory bound
+        cov_ctx = replace(ctx, jacobian=sens)
     cov = parameter_covariance(cov_ctx, all_cols, nl_sens, sol.prediction_m)
     k0 = fixed_columns(ctx)
     k_lin = k0 + all_cols.shape[2]
@@ -468,7 +469,7 @@ def _nl_sensitivities(ctx: FitContext, effect: Effect, nl: np.ndarray, base, fix
 
 #: Coefficient sets whose re-simulated context :func:`joint_misfit` keeps (a forward difference along an effect
 #: parameter, and the first trial points of multi-starts from one coefficient set, come back to the same ones).
-RECENT_COEFFICIENT_SETS = 12
+RECENT_COEFFICIENT_SETS = 6
 
 
 class _RecentCoefficients:
