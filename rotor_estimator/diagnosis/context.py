@@ -238,14 +238,24 @@ def simulate_nominal(rig, mats, r, t_s, shaft, schedule, u_smooth, u_step, h_s):
     return out[:, :4], out[:, 4:], states[:, 4:8]
 
 
+#: Forward-difference step along a coefficient, relative to its scaled value (at least this much of its scale).
+COEFFICIENT_DIFFERENCE_STEP = 1e-3
+
+
+def coefficient_difference_steps(coefficients: np.ndarray) -> np.ndarray:
+    """Forward-difference steps (8, scaled units) about ``coefficients`` (SI): the sensitivity ``J`` here and the
+    effect's coupling to the coefficients (:func:`.ranking.effect_coefficient_sensitivity`) share them."""
+    return COEFFICIENT_DIFFERENCE_STEP * np.maximum(np.abs(np.asarray(coefficients, float) / COEFFICIENT_SCALE), 1.0)
+
+
 def _nominal_products(rig, mats, r_hat, t, shaft, schedule, u_s, u_z, h):
     """Nominal output, probe velocity, bearing displacement and coefficient sensitivity at ``r_hat``."""
     y_nom, v_nom, z_nom = simulate_nominal(rig, mats, r_hat, t, shaft, schedule, u_s, u_z, h)
     jac = np.zeros((len(t), 4, 8))
-    p_hat = r_hat / COEFFICIENT_SCALE
+    steps = coefficient_difference_steps(r_hat)
     for i in range(8):
         step = np.zeros(8)
-        step[i] = 1e-3 * max(abs(p_hat[i]), 1.0)
+        step[i] = steps[i]
         yp, _, _ = simulate_nominal(rig, mats, r_hat + step * COEFFICIENT_SCALE, t, shaft, schedule, u_s, u_z, h)
         jac[:, :, i] = (yp - y_nom) / step[i]
     return y_nom, v_nom, z_nom, jac

@@ -26,10 +26,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rotor_estimator.core.linear_filters import single_threaded_blas
-from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, PRIOR_ROWS, FitContext, rigid_model_is_stable,
-                                              stable_start)
+from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, PRIOR_ROWS, FitContext, coefficient_difference_steps,
+                                              fit_nominal, nuisance_columns, recentered, rigid_model_is_stable,
+                                              stable_start, with_coefficients)
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
-from rotor_estimator.diagnosis.context import nuisance_columns
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
                                               correlation_segment, gain_prior_rows, spectral_covariance,
                                               held_out_rms, linear_prior_weights, residual_after_fit, solve_linear)
@@ -387,11 +387,6 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
                      local_coefficients_cov=cov[:8, :8] * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE))
 
 
-#: Forward-difference step of :func:`effect_coefficient_sensitivity`, relative to each coefficient (scaled units,
-#: at least 1e-3 of its scale).
-COUPLING_STEP = 1e-3
-
-
 def effect_coefficient_sensitivity(ctx: FitContext, effect: Effect, nl: np.ndarray, base: tuple[EffectFit, ...],
                                    base_effects: list[tuple[Effect, np.ndarray]], gains: np.ndarray) -> np.ndarray:
     """(N, 4, 8) derivative of the effect's output (with its ``base``, at fixed ``nl`` and ``gains``) in the 8
@@ -403,8 +398,6 @@ def effect_coefficient_sensitivity(ctx: FitContext, effect: Effect, nl: np.ndarr
     coefficients is ``J + d(X theta)/dr``. A 2X force is seen through the rotor's dynamic stiffness, which the
     coefficients set: without this term the force's std ignored the coefficients' (0.15 N against 1.4-2.9 N
     of shift to the true coefficients, on an independent misalignment record)."""
-    from rotor_estimator.diagnosis.context import with_coefficients
-
     n = ctx.t_s.size
 
     def output(cx: FitContext) -> np.ndarray:
@@ -413,8 +406,7 @@ def effect_coefficient_sensitivity(ctx: FitContext, effect: Effect, nl: np.ndarr
 
     y0 = output(ctx)
     out = np.zeros((n, 4, 8))
-    for i in range(8):
-        step = COUPLING_STEP * max(abs(float(ctx.coefficients[i])) / COEFFICIENT_SCALE[i], 1.0)
+    for i, step in enumerate(coefficient_difference_steps(ctx.coefficients)):
         shifted = ctx.coefficients.copy()
         shifted[i] += step * COEFFICIENT_SCALE[i]
         try:
@@ -484,8 +476,6 @@ class _RecentCoefficients:
         self.entries: dict[bytes, tuple[FitContext, tuple[np.ndarray | None, np.ndarray] | None]] = {}
 
     def get(self, coefficients: np.ndarray) -> tuple[FitContext, tuple[np.ndarray | None, np.ndarray] | None]:
-        from rotor_estimator.diagnosis.context import with_coefficients
-
         key = np.asarray(coefficients, float).tobytes()
         hit = self.entries.pop(key, None)
         if hit is None:
@@ -596,8 +586,6 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     are free in :func:`scipy.optimize.least_squares`, the linear ones projected out, and
     the fit is kept only when its BIC improves.
     """
-    from rotor_estimator.diagnosis.context import recentered
-
     n_nl = len(effect.nl_names)
     fun, lo, hi = joint_misfit(ctx, effect, base)
     best = fit
@@ -748,8 +736,6 @@ def with_coupled_covariance(fit: EffectFit | None, base: tuple[EffectFit, ...] =
     diagnosis reports (the search's hundreds of fits keep the cheaper uncoupled one)."""
     if fit is None or fit.effect is None or fit.ctx is None:
         return fit
-    from rotor_estimator.diagnosis.context import recentered
-
     try:
         ctx = fit.ctx
         if not np.array_equal(fit.coefficients, ctx.coefficients):
@@ -965,8 +951,6 @@ def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 
     model itself; this re-evaluates the nominal from there so that the improvement is not
     credited to the effect.
     """
-    from rotor_estimator.diagnosis.context import fit_nominal
-
     res = fit_nominal(ctx.rig, ctx.mats, ctx.t_s, ctx.y_m, ctx.mask, ctx.shaft, ctx.schedule, ctx.known_smooth_n,
                       ctx.known_step_n, ctx.period_s, [coefficients], max_nfev=polish_nfev,
                       start_transient=ctx.start_transient, prior=ctx.prior)
