@@ -33,7 +33,8 @@ from rotor_estimator.bench.cases import BlindCase
 from rotor_estimator.bench.independent_effects import (FORMS, WARMUP_S, Form, Measurement, calibrate, compose,
                                                        gap_of, simulate_record, true_gap)
 from rotor_estimator.bench.independent_physics import (EPOCH_NS, HammerPulse, RotorGeometry, TrueModel, integrate,
-                                                       linear_eigenvalues, settle_time_s, unbalance)
+                                                       linear_eigenvalues, settle_time_s, tangent_coefficients,
+                                                       unbalance)
 from rotor_estimator.core.config import RigFile, load_rig_file
 from rotor_estimator.core.recording import RigRecording
 
@@ -138,7 +139,8 @@ def _own_case(spec: dict, rng: np.random.Generator, rig_file: RigFile) -> tuple[
         targets.append(target)
         own_gaps[form.family] = g
     gap, rec = true_gap(base, meas0, parts, DURATION_S, noise, steady=steady, lead_s=lead, cache=cache)
-    _, _, params = compose(base, meas0, parts)
+    true_model, _, params = compose(base, meas0, parts)
+    tangent = tangent_coefficients(true_model)
     y = rec.probes_m + rng.standard_normal(rec.probes_m.shape) * noise
     recording = RigRecording(EPOCH_NS + np.round(rec.t_s * 1e9).astype(np.int64), y,
                              EPOCH_NS + np.round(rec.pulses_s * 1e9).astype(np.int64), rec.force_n,
@@ -152,6 +154,9 @@ def _own_case(spec: dict, rng: np.random.Generator, rig_file: RigFile) -> tuple[
              "effect_params": {f.family: p for (f, _, _), p in zip(parts, params)},
              "start": "steady" if steady else "from_rest", "noise_rms_m": noise_rms, "noise_std_drawn_m": noise,
              "impacts": [[p.start_s, p.duration_s, p.force_x_n, p.force_y_n, p.shape] for p in base.impacts]}
+    if true_model.nonlinearity is not None:  # the coefficients a linear fit about the operating point sees
+        label["true_tangent_coefficients"] = [float(v) for v in tangent.mean(axis=0)]
+        label["true_tangent_coefficients_per_bearing"] = [[float(v) for v in row] for row in tangent]
     return recording, label, cond["speed"], base.coefficients
 
 

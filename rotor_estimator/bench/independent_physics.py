@@ -213,6 +213,52 @@ def nonlinear_bearing_force(nl: BearingNonlinearity, d: np.ndarray) -> np.ndarra
     return f
 
 
+def static_equilibrium(model: TrueModel, mats: Matrices | None = None) -> np.ndarray:
+    """``q0`` (n,) where the static loads (gravity, ``h = 0`` forces) meet the bearings' linear and nonlinear
+    restoring forces: ``K q0 - sum_b T_b' f_nl(T_b q0) = F0``, by Newton's method from the linear solution."""
+    mats = mats or Matrices(model)
+    f0 = mats.harmonics[0].real
+    q = np.linalg.solve(mats.stiffness, f0)
+    nl = model.nonlinearity
+    if nl is None:
+        return q
+    for _ in range(100):
+        resid = mats.stiffness @ q - sum(tb.T @ nonlinear_bearing_force(nl, tb @ q) for tb in mats.relative) - f0
+        jac = mats.stiffness + sum(tb.T @ bearing_tangent_stiffness(nl, tb @ q) @ tb for tb in mats.relative)
+        step = np.linalg.solve(jac, resid)
+        q = q - step
+        if np.max(np.abs(step)) < 1e-15 + 1e-12 * np.max(np.abs(q)):
+            return q
+    raise RuntimeError("static_equilibrium: Newton's method did not converge")
+
+
+def bearing_tangent_stiffness(nl: BearingNonlinearity, d: np.ndarray, step_m: float = 1e-9) -> np.ndarray:
+    """(2, 2) restoring stiffness ``-d f_nl / d d`` of the nonlinear bearing force at displacement ``d``
+    (central differences)."""
+    out = np.zeros((2, 2))
+    for j in range(2):
+        e = np.zeros(2)
+        e[j] = step_m
+        out[:, j] = -(nonlinear_bearing_force(nl, d + e) - nonlinear_bearing_force(nl, d - e)) / (2 * step_m)
+    return out
+
+
+def tangent_coefficients(model: TrueModel) -> np.ndarray:
+    """(2, 8) the bearing coefficients linearized about the static equilibrium, per bearing: ``K`` plus the
+    nonlinear force's tangent stiffness there (damping unchanged). This is what a linear model fitted to the
+    motion about the operating point can see (the probes' DC is unknown); without a nonlinearity both rows
+    are the model's coefficients."""
+    mats = Matrices(model)
+    r = np.asarray(model.coefficients, dtype=float)
+    rows = np.tile(r, (len(mats.relative), 1))
+    if model.nonlinearity is None:
+        return rows
+    q0 = static_equilibrium(model, mats)
+    for b, tb in enumerate(mats.relative):
+        rows[b, :4] += bearing_tangent_stiffness(model.nonlinearity, tb @ q0).ravel()
+    return rows
+
+
 def periodic_start(model: TrueModel, mats: Matrices, angle_rad: float) -> np.ndarray:
     """State ``[q, q']`` of the periodic solution of the linear part at shaft angle ``angle_rad``."""
     w = model.speed_rad_s

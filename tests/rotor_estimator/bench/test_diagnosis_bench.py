@@ -61,6 +61,21 @@ def test_a_tie_scores_as_a_hit_only_with_two_members_holding_the_truth_and_cover
     assert abs(s["worst_cross_error_median"] - 120.0 / 1200.0) < 1e-12
 
 
+def test_a_nonlinear_bearing_case_is_scored_against_its_tangent_coefficients():
+    """A label with the coefficients linearized about the true static equilibrium (a hardening bearing under
+    gravity) scores the estimate against them: an estimate at the tangent is covered with zero error, and
+    the same estimate against the linear part alone (no tangent in the label) is not."""
+    linear = [5e5, 4e5, -3.5e5, 6e5, 1100.0, 50.0, -40.0, 1200.0]
+    tangent = [7e5, 3e5, -4.5e5, 7.5e5, 1100.0, 50.0, -40.0, 1200.0]
+    std = [2e4] * 4 + [30.0] * 4
+    res = [{"case": "a", "best_effect": "bearing_cubic", "second_effect": "none", "top_two": ["bearing_cubic"],
+            "coefficients": tangent, "coefficients_std": std, "before": 2e-6, "shrink_ratio": 2.0, "seconds": 1.0}]
+    lab = {**_label(["bearing_cubic"]), "true_coefficients": linear}
+    with_tangent = score(res, {"a": {**lab, "true_tangent_coefficients": tangent}})
+    assert with_tangent["coefficient_coverage"] == 1.0 and with_tangent["worst_direct_error_median"] == 0.0
+    assert score(res, {"a": lab})["coefficient_coverage"] == 4 / 8
+
+
 def test_each_generator_is_scored_apart():
     """Cases of the own and the independent generator are scored in separate blocks: a miss on an
     independent case lowers only the independent block's top-1, and the text names both generators."""

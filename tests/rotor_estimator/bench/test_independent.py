@@ -185,3 +185,42 @@ def test_plan_mixes_controls_pairs_and_every_form():
     singles = {s["form"] for s in specs if s["kind"] == "single"}
     assert singles == set(independent.PLANNED_FORMS) | set(independent.ROSS_FORMS)
     assert independent.plan(40, 3) == p and len({cid for cid, _, _ in p}) == 40
+
+
+def test_tangent_coefficients_are_what_small_motion_about_the_static_equilibrium_follows():
+    """A rotor on hardening bearings (radial cubic about the bearing centre) sags under gravity to the static
+    equilibrium of :func:`static_equilibrium`; a small impact there moves it as the linear rotor on the
+    tangent coefficients does (within 2 % of the response, the rest being the nonlinearity's higher orders),
+    and not as the rotor on its linear coefficients ``K`` alone (over 20 % off: the check can fail)."""
+    from rotor_estimator.bench.independent_physics import BearingNonlinearity, static_equilibrium, \
+        tangent_coefficients
+
+    rig = load_rig_file().rig
+    r = rig.true_coefficients.as_array()
+    pulse = (HammerPulse(0.002, 50e-6, 2.0, -1.5, "rect"),)
+    geo = RotorGeometry.from_rig(rig)
+    model = TrueModel(geo, tuple(r), rig.speed_rad_s, impacts=pulse,
+                      nonlinearity=BearingNonlinearity(cubic_n_per_m3=2e14))
+    tangent = tangent_coefficients(model)
+    assert np.allclose(tangent[0], tangent[1])  # the rig's bearings carry equal static loads
+    assert np.allclose(tangent[0, 4:], r[4:])   # damping is not changed by a stiffness law
+    q0 = static_equilibrium(model)
+    t = np.linspace(0.0, 0.03, 600)
+    traj, mats = integrate(model, 0.0, 0.03, steady=False, initial=np.concatenate([q0, np.zeros(4)]))
+    moved = traj.states(t)[:, :4] - q0
+    assert np.max(np.abs(traj.states(t[:1])[:, :4] - q0)) < 1e-12  # at rest there before the impact
+    for coefficients, close in ((tangent[0], True), (r, False)):
+        linear = TrueModel(geo, tuple(coefficients), rig.speed_rad_s, impacts=pulse, gravity_m_s2=0.0)
+        traj_l, _ = integrate(linear, 0.0, 0.03, steady=False)
+        err = np.sqrt(np.mean((traj_l.states(t)[:, :4] - moved) ** 2)) / np.sqrt(np.mean(moved ** 2))
+        assert (err < 0.02) if close else (err > 0.2)
+
+
+def test_a_linear_true_model_has_its_own_coefficients_as_tangent():
+    """Without a nonlinear bearing force the tangent at the static equilibrium is ``K`` at both bearings."""
+    from rotor_estimator.bench.independent_physics import tangent_coefficients
+
+    rig = load_rig_file().rig
+    r = rig.true_coefficients.as_array()
+    tangent = tangent_coefficients(_model(rig, r))
+    assert np.array_equal(tangent, np.tile(r, (2, 1)))
