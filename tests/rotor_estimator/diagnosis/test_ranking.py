@@ -497,3 +497,18 @@ def test_the_covariance_predicts_how_2x_forces_move_with_the_coefficients_throug
             assert np.array_equal(reported.lin, fit.lin) and reported.bic == fit.bic
             coupled_fit = fit_effect(recentered(ctx, r_off), effect, hold_coefficients=True, coupled_covariance=True)
             np.testing.assert_allclose(reported.lin_cov, coupled_fit.lin_cov, rtol=1e-9)
+
+
+def test_every_form_of_the_two_leading_effects_and_no_other_is_continued_before_one_stands_for_it():
+    """The forms' race of a leading effect is decided after convergence: the two best effects (each by its best
+    form) that were fitted in several forms are named, a single-form leader and a third effect are not."""
+    from types import SimpleNamespace
+
+    from rotor_estimator.diagnosis.ranking import forms_to_converge
+
+    fits = [SimpleNamespace(name=n, bic=b) for n, b in
+            (("pedestal", -90.0), ("pedestal", -120.0), ("probe_runout", -110.0), ("bearing_cubic", -100.0),
+             ("bearing_cubic", -95.0), ("pedestal", -50.0))]
+    assert forms_to_converge(fits) == {"pedestal"}  # probe_runout leads second, in one form
+    assert forms_to_converge(fits, leaders=3) == {"pedestal", "bearing_cubic"}
+    assert forms_to_converge([f for f in fits if f.name != "probe_runout"]) == {"pedestal", "bearing_cubic"}
