@@ -968,7 +968,6 @@ def _with_reference(f: EffectFit, ref_bic: float) -> EffectFit:
     return replace(f, delta_bic=ref_bic - f.bic)
 
 
-@single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
 def forms_to_converge(singles: list[EffectFit], leaders: int = 2) -> set[str]:
     """Names of the ``leaders`` best effects (each by its best form's BIC) that were fitted in more than one
     form: every form of these is continued to convergence before one stands for its effect."""
@@ -976,6 +975,7 @@ def forms_to_converge(singles: list[EffectFit], leaders: int = 2) -> set[str]:
     return {name for name in ranked if sum(f.name == name for f in singles) > 1}
 
 
+@single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
 def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, second_stage: bool = True,
                  threshold: float = SIGNIFICANCE_DELTA_BIC, progress=None) -> Ranking:
     """Fit each candidate, refine the leaders jointly with the coefficients, then select one or two effects.

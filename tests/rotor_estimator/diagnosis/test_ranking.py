@@ -512,3 +512,25 @@ def test_every_form_of_the_two_leading_effects_and_no_other_is_continued_before_
     assert forms_to_converge(fits) == {"pedestal"}  # probe_runout leads second, in one form
     assert forms_to_converge(fits, leaders=3) == {"pedestal", "bearing_cubic"}
     assert forms_to_converge([f for f in fits if f.name != "probe_runout"]) == {"pedestal", "bearing_cubic"}
+
+
+def test_the_ranking_runs_with_blas_on_one_thread(monkeypatch):
+    """rank_effects limits BLAS to one thread (its matrices are small: threaded BLAS only oversubscribes), even
+    when the caller allows two; the probe stands in for its first step."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    from rotor_estimator.diagnosis import ranking
+
+    seen = []
+
+    def probe(ctx):
+        seen.append([i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"])
+        raise RuntimeError("probe: stop here")
+
+    monkeypatch.setattr(ranking, "nominal_solution", probe)
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        outside = [i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]
+        with pytest.raises(RuntimeError, match="probe"):
+            ranking.rank_effects(None)
+    assert seen and seen[0] and all(n == 1 for n in seen[0])
+    if any(n > 1 for n in outside):  # the check can fail only where BLAS runs more than one thread outside
+        assert seen[0] != outside
