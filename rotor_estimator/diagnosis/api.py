@@ -9,7 +9,7 @@ level), ``residual_rms_before`` / ``residual_rms_after`` (m, all probe channels)
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -17,7 +17,7 @@ from rotor_estimator.core.config import COEFFICIENT_NAMES_WITH_UNITS, EstimatorC
 from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, WARMUP_S, FitContext, build_context,
-                                              slowest_decay_rate_1_per_s)
+                                              slowest_decay_rate_1_per_s, start_transient_sensitivity)
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.effects.base import separating_measurements
 from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, TIE_LR_QUANTILE,
@@ -365,7 +365,9 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     where = budget(ctx.t_s[ctx.mask], (ctx.y_m - sol0.prediction_m)[ctx.mask], ctx.shaft.angle_rad[ctx.mask],
                    ctx.shaft.speed_rad_s[ctx.mask], ctx.impact_force_n[ctx.mask], ctx.noise_std_m)
     innov = innovation_consistency(ctx.ekf_nis, ctx.ekf_innovation_m, ctx.ekf_innovation_std_m)
-    nominal_cov = parameter_covariance(ctx, np.zeros((ctx.t_s.size, 4, 0)), np.zeros((ctx.t_s.size, 4, 0)),
+    # the coefficients' column carries the start transient's dependence on them too (a record from rest)
+    cov_ctx = replace(ctx, jacobian=ctx.jacobian + start_transient_sensitivity(ctx, sol0.start_state))
+    nominal_cov = parameter_covariance(cov_ctx, np.zeros((ctx.t_s.size, 4, 0)), np.zeros((ctx.t_s.size, 4, 0)),
                                        sol0.prediction_m)
     nominal_cov_si = nominal_cov[:8, :8] * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
     if rk.best is None:  # the nominal model is the verdict: its coefficients' likelihood profile too

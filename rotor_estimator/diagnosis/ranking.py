@@ -28,7 +28,7 @@ from scipy.optimize import least_squares
 from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, PRIOR_ROWS, FitContext, coefficient_difference_steps,
                                               fit_nominal, nuisance_columns, recentered, rigid_model_is_stable,
-                                              stable_start, with_coefficients)
+                                              stable_start, start_transient_sensitivity, with_coefficients)
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
                                               correlation_segment, gain_prior_rows, spectral_covariance,
@@ -292,8 +292,9 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     at ``nl0`` (an exact optimum's, :func:`refine`); only the linear ones are solved for. The coefficients'
     covariance is still the local one about the context.
     ``coupled_covariance``: the parameter covariance's design also carries the effect's own sensitivity to the
-    coefficients (:func:`effect_coefficient_sensitivity`; 8 re-simulations of the effect, so only the reported
-    fits ask for it: :func:`with_coupled_covariance`).
+    coefficients (:func:`effect_coefficient_sensitivity`) and the start transient's
+    (:func:`.context.start_transient_sensitivity`); 8 re-simulations of each, so only the reported fits ask for
+    it: :func:`with_coupled_covariance`.
     """
     n = ctx.t_s.size
     base_off = _sum([b.offset for b in base])
@@ -356,6 +357,7 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     if coupled_covariance:
         sens = effect_coefficient_sensitivity(ctx, effect, nl, base, base_effects, sol.theta)
         sens += ctx.jacobian  # in place: a long record's (N, 4, 8) arrays count against its memory bound
+        sens += start_transient_sensitivity(ctx, sol.start_state)
         cov_ctx = replace(ctx, jacobian=sens)
     cov = parameter_covariance(cov_ctx, all_cols, nl_sens, sol.prediction_m)
     k0 = fixed_columns(ctx)
