@@ -140,7 +140,6 @@ def _own_case(spec: dict, rng: np.random.Generator, rig_file: RigFile) -> tuple[
         own_gaps[form.family] = g
     gap, rec = true_gap(base, meas0, parts, DURATION_S, noise, steady=steady, lead_s=lead, cache=cache)
     true_model, _, params = compose(base, meas0, parts)
-    tangent = tangent_coefficients(true_model)
     y = rec.probes_m + rng.standard_normal(rec.probes_m.shape) * noise
     recording = RigRecording(EPOCH_NS + np.round(rec.t_s * 1e9).astype(np.int64), y,
                              EPOCH_NS + np.round(rec.pulses_s * 1e9).astype(np.int64), rec.force_n,
@@ -155,6 +154,7 @@ def _own_case(spec: dict, rng: np.random.Generator, rig_file: RigFile) -> tuple[
              "start": "steady" if steady else "from_rest", "noise_rms_m": noise_rms, "noise_std_drawn_m": noise,
              "impacts": [[p.start_s, p.duration_s, p.force_x_n, p.force_y_n, p.shape] for p in base.impacts]}
     if true_model.nonlinearity is not None:  # the coefficients a linear fit about the operating point sees
+        tangent = tangent_coefficients(true_model)
         label["true_tangent_coefficients"] = [float(v) for v in tangent.mean(axis=0)]
         label["true_tangent_coefficients_per_bearing"] = [[float(v) for v in row] for row in tangent]
     return recording, label, cond["speed"], base.coefficients
