@@ -183,6 +183,14 @@ class FitContext:
         """The least-squares DC gap plus start transient of the nominal output error on the fit rows, (N, 4)."""
         return nuisance_fit(self.start_columns_m, self.y_m - self.y_nom_m, self.mask)
 
+    @cached_property
+    def motion_m(self) -> np.ndarray:
+        """The nominal model's probe displacements (N, 4) with its fitted start transient: the periodic response
+        plus the decay from the estimated initial state (:attr:`y_nom_m` alone without one). What a probe's
+        calibration map acts on."""
+        return self.y_nom_m + nuisance_fit(self.start_columns_m, self.y_m - self.y_nom_m, self.mask,
+                                           transient_only=True)
+
     def response(self, u_smooth: np.ndarray, u_step: np.ndarray | None = None) -> np.ndarray:
         """Probe output (N, 4) of the nominal rigid model (or :attr:`response_model`) driven by generalized
         forces (N, 4)."""
@@ -211,15 +219,21 @@ def nuisance_columns(start_columns_m: np.ndarray) -> np.ndarray:
     return np.concatenate([dc, start_columns_m], axis=2)
 
 
-def nuisance_fit(start_columns_m: np.ndarray, error_m: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """Least-squares DC gap plus start transient of ``error_m`` (N, 4) on ``rows``, evaluated on every sample."""
+def nuisance_fit(start_columns_m: np.ndarray, error_m: np.ndarray, rows: np.ndarray, *,
+                 transient_only: bool = False) -> np.ndarray:
+    """Least-squares DC gap plus start transient of ``error_m`` (N, 4) on ``rows``, evaluated on every sample;
+    ``transient_only``: the start transient's part ``S s`` of that fit alone (zeros without start columns)."""
     if start_columns_m.shape[2] == 0:  # the DC gaps alone: each channel's mean (the same solution, no SVD)
+        if transient_only:
+            return np.zeros(error_m.shape)
         return np.broadcast_to(error_m[rows].mean(axis=0), error_m.shape).copy()
     cols = nuisance_columns(start_columns_m)
     a = cols[rows].reshape(-1, cols.shape[2])
     norm = np.sqrt((a * a).sum(axis=0))
     norm[norm == 0] = 1.0
     coef, *_ = np.linalg.lstsq(a / norm, error_m[rows].ravel(), rcond=1e-10)
+    if transient_only:
+        return np.einsum("nck,k->nc", start_columns_m, (coef / norm)[4:])
     return np.einsum("nck,k->nc", cols, coef / norm)
 
 
