@@ -188,8 +188,7 @@ class FitContext:
         """The nominal model's probe displacements (N, 4) with its fitted start transient: the periodic response
         plus the decay from the estimated initial state (:attr:`y_nom_m` alone without one). What a probe's
         calibration map acts on."""
-        return self.y_nom_m + nuisance_fit(self.start_columns_m, self.y_m - self.y_nom_m, self.mask,
-                                           transient_only=True)
+        return self.y_nom_m + start_transient_fit(self.start_columns_m, self.y_m - self.y_nom_m, self.mask)
 
     def response(self, u_smooth: np.ndarray, u_step: np.ndarray | None = None) -> np.ndarray:
         """Probe output (N, 4) of the nominal rigid model (or :attr:`response_model`) driven by generalized
@@ -219,22 +218,37 @@ def nuisance_columns(start_columns_m: np.ndarray) -> np.ndarray:
     return np.concatenate([dc, start_columns_m], axis=2)
 
 
-def nuisance_fit(start_columns_m: np.ndarray, error_m: np.ndarray, rows: np.ndarray, *,
-                 transient_only: bool = False) -> np.ndarray:
-    """Least-squares DC gap plus start transient of ``error_m`` (N, 4) on ``rows``, evaluated on every sample;
-    ``transient_only``: the start transient's part ``S s`` of that fit alone (zeros without start columns)."""
+def nuisance_fit(start_columns_m: np.ndarray, error_m: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Least-squares DC gap plus start transient of ``error_m`` (N, 4) on ``rows``, evaluated on every sample."""
     if start_columns_m.shape[2] == 0:  # the DC gaps alone: each channel's mean (the same solution, no SVD)
-        if transient_only:
-            return np.zeros(error_m.shape)
         return np.broadcast_to(error_m[rows].mean(axis=0), error_m.shape).copy()
     cols = nuisance_columns(start_columns_m)
     a = cols[rows].reshape(-1, cols.shape[2])
     norm = np.sqrt((a * a).sum(axis=0))
     norm[norm == 0] = 1.0
     coef, *_ = np.linalg.lstsq(a / norm, error_m[rows].ravel(), rcond=1e-10)
-    if transient_only:
-        return np.einsum("nck,k->nc", start_columns_m, (coef / norm)[4:])
     return np.einsum("nck,k->nc", cols, coef / norm)
+
+
+def start_transient_fit(start_columns_m: np.ndarray, error_m: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The start transient's part ``S s`` (N, 4) of :func:`nuisance_fit`; zeros without start columns.
+
+    The DC gaps are one free constant per channel, so they are projected out by centring each channel of
+    ``S`` and of ``error_m`` on ``rows`` (Frisch-Waugh-Lovell), leaving the 8 x 8 normal equations of the
+    unit-normed start columns (a pseudo-inverse, as :func:`.fitting.solve_linear`). A probe map's basis needs
+    it at every trial point of a joint refit: ``lstsq`` on the stacked 12 columns took 21 ms there, against
+    4 ms for the re-simulation itself."""
+    if start_columns_m.shape[2] == 0:
+        return np.zeros(error_m.shape)
+    s_rows = start_columns_m[rows]
+    s_rows = s_rows - s_rows.mean(axis=0)
+    e_rows = error_m[rows] - error_m[rows].mean(axis=0)
+    gram = np.einsum("nck,ncl->kl", s_rows, s_rows)
+    norm = np.sqrt(np.diag(gram)).copy()
+    norm[norm == 0] = 1.0
+    rhs = np.einsum("nck,nc->k", s_rows, e_rows) / norm
+    coef = np.linalg.pinv(gram / np.outer(norm, norm), rcond=1e-12, hermitian=True) @ rhs / norm
+    return np.einsum("nck,k->nc", start_columns_m, coef)
 
 
 def start_columns(mats, r, schedule, h_s, *, estimated: bool = True) -> np.ndarray:

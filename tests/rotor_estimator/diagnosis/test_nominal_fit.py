@@ -69,8 +69,9 @@ def test_the_start_transient_is_estimated_only_when_the_record_before_its_first_
 
 def test_nuisance_fit_is_the_least_squares_dc_and_start_transient_with_or_without_start_columns():
     """Agreement with an independent least-squares solve (numpy lstsq on the stacked design): the DC-only
-    case (each channel's mean on the rows) and the DC + start-transient case give the same fitted signal."""
-    from rotor_estimator.diagnosis.context import nuisance_columns, nuisance_fit
+    case (each channel's mean on the rows) and the DC + start-transient case give the same fitted signal, and
+    start_transient_fit (DC centred out, 8 x 8 normal equations) is that solve's start-transient part."""
+    from rotor_estimator.diagnosis.context import nuisance_columns, nuisance_fit, start_transient_fit
 
     rng = np.random.default_rng(3)
     n = 300
@@ -80,6 +81,8 @@ def test_nuisance_fit_is_the_least_squares_dc_and_start_transient_with_or_withou
         cols = nuisance_columns(start)
         coef, *_ = np.linalg.lstsq(cols[rows].reshape(-1, cols.shape[2]), err[rows].ravel(), rcond=None)
         assert np.allclose(nuisance_fit(start, err, rows), np.einsum("nck,k->nc", cols, coef), atol=1e-10)
+        assert np.allclose(start_transient_fit(start, err, rows), np.einsum("nck,k->nc", start, coef[4:]),
+                           atol=1e-10)
 
 
 def test_bearings_without_cross_coupling_are_stable_at_every_speed_and_an_unstable_start_is_moved_to_stability():
