@@ -79,8 +79,8 @@ def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
     """
     rf = load_rig_file()
     rig = rf.rig
-    impacts = (Impact(0.05, 50e-6, 350.0, -300.0), Impact(0.16, 50e-6, -250.0, 420.0))
-    scenario = EffectScenario(speed_rad_s=rig.speed_rad_s, duration_s=0.25, lead_in_s=0.2, impacts=impacts,
+    impacts = (Impact(0.05, 50e-6, 350.0, -300.0), Impact(0.12, 50e-6, -250.0, 420.0))
+    scenario = EffectScenario(speed_rad_s=rig.speed_rad_s, duration_s=0.17, lead_in_s=0.2, impacts=impacts,
                               noise_std_m=1e-6, coefficients=rig.true_coefficients.as_array())
     effects = HiddenEffects(misalignment_n=(-60.0, -50.0, 20.0, -65.0), skew_s=(70e-6, -90e-6, 60e-6))
     sim = simulate_with_effects(rig, scenario, effects, seed=seed)
@@ -258,13 +258,14 @@ def test_strong_misalignment_with_near_limit_skew_is_the_pair_not_runout():
 
     The conditions of a blind case (seed 2035, case_025) that was called runout: the skew pair's first
     pass, linearized about the coefficients the misalignment fit had dragged, ranked it eleventh; only
-    its joint refit with the coefficients shows it (every signal-transform pair is now refitted).
+    its joint refit with the coefficients shows it (every signal-transform pair is now refitted). The record
+    is that case cut to 0.2 s of its 0.273 s (its impact at 0.135 s kept), to keep the test under a minute.
     """
     rf = load_rig_file()
     speed = 22983.9 * math.pi / 30
     rig = replace(rf.rig, speed_rad_s=speed, noise_std_m=1.37e-6)
     r_true = np.array([566750.0, 487191.0, -311362.0, 672825.0, 1420.9, 38.4, -46.2, 1329.4])
-    scenario = EffectScenario(speed_rad_s=speed, duration_s=0.2734, lead_in_s=0.3,
+    scenario = EffectScenario(speed_rad_s=speed, duration_s=0.2, lead_in_s=0.3,
                               impacts=(Impact(0.135, 50e-6, 46.9, -295.4),), noise_std_m=1.37e-6,
                               coefficients=r_true)
     effects = HiddenEffects(misalignment_n=(-244.1, 56.9, 61.6, -181.7), preload_n=(-11.6, 4.2),
