@@ -7,6 +7,22 @@ from rotor_estimator.core.config import load_rig_file
 from rotor_estimator.core.simulator import paper_scenario, simulate
 
 
+@pytest.fixture(scope="session", autouse=True)
+def one_blas_thread_per_worker():
+    """BLAS on one thread in every test process: the README's test command runs one xdist worker per core,
+    so BLAS threads on top only oversubscribe the cores. The small matrices of the fits gain nothing from
+    them: with two BLAS threads per worker a test fitting outside ``rank_effects`` (which limits itself) ran
+    2.2x slower. Tests that check a thread limit set their own with ``threadpool_limits``.
+
+    SciPy's wheels bring their own OpenBLAS, loaded with ``scipy.linalg``: it is loaded first, since a limit acts
+    only on the libraries already loaded."""
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import threadpool_limits  # a dependency of the package (setup.py)
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
 @pytest.fixture(scope="session")
 def seed_rig_file():
     return load_rig_file()
