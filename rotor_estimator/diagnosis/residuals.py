@@ -53,6 +53,18 @@ def _peaks(rest: np.ndarray, fs: float, speed_hz: float, n_peaks: int = 3) -> li
     return out
 
 
+def nonsync_peak_frequencies_hz(t_s: np.ndarray, residual_m: np.ndarray, angle_rad: np.ndarray,
+                                speed_rad_s: np.ndarray, n_peaks: int = 2) -> list[float]:
+    """Frequencies (Hz) of the largest fixed-frequency lines of a residual (rows already selected) once its
+    orders 1X..8X are removed: the ``nonsync_peaks`` of :func:`budget`, strongest first. An unmodelled mode
+    rung by an impact or by the start from rest shows here (at the frequency of the whole system's mode)."""
+    e = residual_m - residual_m.mean(axis=0)
+    _, fit = _orders(e, angle_rad)
+    fs = 1.0 / float(np.median(np.diff(t_s)))
+    speed_hz = float(np.mean(speed_rad_s)) / (2 * np.pi)
+    return [p["frequency_hz"] for p in _peaks(e - fit, fs, speed_hz, n_peaks)]
+
+
 def budget(t_s: np.ndarray, residual_m: np.ndarray, angle_rad: np.ndarray, speed_rad_s: np.ndarray,
            impact_force_n: np.ndarray, noise_std_m: np.ndarray) -> dict:
     """Residual budget of masked samples (rows already selected). Powers in m^2, shares of the total excess."""
