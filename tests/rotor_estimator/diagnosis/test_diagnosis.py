@@ -144,7 +144,7 @@ def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
     from dataclasses import replace
 
     rig = rig_file.rig
-    duration_s = 0.15  # the shortest record that still holds two impacts' decays (the command's cost is ~linear in it)
+    duration_s = 0.15  # impacts at 40 and 70 ms: a short record keeps the command's full diagnosis under a minute
     sim = simulate_with_effects(rig, _scenario(rig, duration_s=duration_s), HiddenEffects(runout_m=RUNOUT), seed=5)
     rec = sim.recording
     rec.probes_m[1500:1507, 1] = np.nan  # a probe dropout: counted and left out, never silently used
