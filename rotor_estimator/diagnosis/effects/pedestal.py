@@ -11,6 +11,7 @@ import numpy as np
 from rotor_estimator.diagnosis import models
 from rotor_estimator.diagnosis.effects.base import Effect
 from rotor_estimator.diagnosis.linsim import free_response
+from rotor_estimator.diagnosis.residuals import nonsync_peak_frequencies_hz
 
 
 FOUNDATIONS = ("separate", "common")
@@ -91,12 +92,10 @@ class PedestalFlexibility(Effect):
         the foundation it rings at ``sqrt(k / (m + M)) / 2 pi``, ``M`` the rotor mass each housing coordinate
         carries (``T^T M_rotor T``; all of it for a common foundation). The peak fixes ``k / (m + M)`` only, so
         each peak gives a start per mass in ``masses_kg``, at the foundation frequency ``sqrt(k / m) / 2 pi``:
-        the peak's times ``sqrt((m + M) / m)``. (An independent record of a 2 kg
-        common foundation at 44.8 Hz, damping ratio 0.025, rang at 28.6 Hz; from the ladder alone the refits
-        stopped at 79 Hz, damping ratio 0.33, and runout won at a 13x gap; refitted from that frequency the
-        foundation explains the record to the noise.)"""
-        from rotor_estimator.diagnosis.residuals import nonsync_peak_frequencies_hz
-
+        the peak's times ``sqrt((m + M) / m)``. (An independent record of a 2 kg common foundation at 44.8 Hz,
+        damping ratio 0.025, rang at 28.6 Hz; from the ladder alone the refits stopped at 79 Hz, damping ratio
+        0.33, and runout won at a 13x gap; refitted from that frequency the foundation explains the record to
+        the noise.)"""
         rows = ctx.mask
         peaks = nonsync_peak_frequencies_hz(ctx.t_s[rows], ctx.residual_m[rows], ctx.shaft.angle_rad[rows],
                                             ctx.shaft.speed_rad_s[rows])
