@@ -154,6 +154,11 @@ class FitContext:
     #: model's generalized-force input (N, 4) and output rows (probe displacements, then velocities);
     #: ``None`` is the rigid nominal of Eq. 2. A structural effect (pedestal) sets it for its pair partner.
     response_model: tuple | None = None
+    #: The start transient is estimated in an effect's own model (:attr:`.Effect.owns_start_transient`: a
+    #: foundation's free response from each of its initial states, the rotor's included), so the design's start
+    #: columns (:attr:`design_start_columns_m`) are the effect's, not the rigid nominal's :attr:`start_columns_m`
+    #: (which still define the nominal residual). Set by :func:`start_in_effect`.
+    start_in_effect: bool = False
 
     @property
     def prior_coefficients(self) -> np.ndarray:
@@ -168,6 +173,12 @@ class FitContext:
     def start_transient(self) -> bool:
         """Whether this record's fits estimate the start transient (:func:`start_transient_shows`)."""
         return self.start_columns_m.shape[2] > 0
+
+    @property
+    def design_start_columns_m(self) -> np.ndarray:
+        """The start transient's columns in a fit's design ``[J, D, S, X]``: :attr:`start_columns_m`, or none
+        (N, 4, 0) when the fitted effect's own columns carry the start transient (:attr:`start_in_effect`)."""
+        return self.start_columns_m[:, :, :0] if self.start_in_effect else self.start_columns_m
 
     @property
     def mean_speed_rad_s(self) -> float:
@@ -288,7 +299,7 @@ def start_transient_sensitivity(ctx: "FitContext", start_state: np.ndarray) -> n
     +- 2.2e5 (the truth 3.8 reported std off, 1.95 noise variances up the misfit)."""
     s = np.asarray(start_state, float)
     out = np.zeros((ctx.t_s.size, 4, 8))
-    if ctx.start_columns_m.shape[2] == 0 or s.size != ctx.start_columns_m.shape[2] or not np.any(s):
+    if ctx.design_start_columns_m.shape[2] == 0 or s.size != ctx.start_columns_m.shape[2] or not np.any(s):
         return out
     base = np.einsum("nck,k->nc", ctx.start_columns_m, s)
     for i, step in enumerate(coefficient_difference_steps(ctx.coefficients)):
@@ -321,8 +332,27 @@ def recentered(ctx: "FitContext", coefficients: np.ndarray) -> "FitContext":
                                                  ctx.period_s)
     r = np.asarray(coefficients, float)
     return replace(ctx, coefficients=r, y_nom_m=y_nom, v_nom_m_s=v_nom, z_nom_m=z_nom, jacobian=jac,
-                   start_columns_m=start_columns(ctx.mats, r, ctx.schedule, ctx.period_s,
-                                                 estimated=ctx.start_transient), _cache={})
+                   start_columns_m=_start_columns_of(ctx, r), _cache={})
+
+
+def _start_columns_of(ctx: "FitContext", r: np.ndarray) -> np.ndarray:
+    """The rigid start columns at ``r`` for a context re-simulated there; an effect-owned start transient's context
+    (:attr:`FitContext.start_in_effect`) keeps its old ones unused in its designs (no re-simulation)."""
+    if ctx.start_in_effect:
+        return ctx.start_columns_m
+    return start_columns(ctx.mats, r, ctx.schedule, ctx.period_s, estimated=ctx.start_transient)
+
+
+def start_in_effect(ctx: "FitContext", effects) -> "FitContext":
+    """``ctx`` for a fit of ``effects`` (None members ignored): when one of them owns the start transient
+    (:attr:`.Effect.owns_start_transient`) and the record's is estimated, a copy whose designs leave it to that
+    effect's columns (:attr:`FitContext.design_start_columns_m`); otherwise ``ctx`` itself."""
+    from dataclasses import replace
+
+    if ctx.start_in_effect or not ctx.start_transient \
+            or not any(e is not None and e.owns_start_transient for e in effects):
+        return ctx
+    return replace(ctx, start_in_effect=True)
 
 
 def with_coefficients(ctx: "FitContext", coefficients: np.ndarray) -> "FitContext":
@@ -333,8 +363,7 @@ def with_coefficients(ctx: "FitContext", coefficients: np.ndarray) -> "FitContex
     y_nom, v_nom, z_nom = simulate_nominal(ctx.rig, ctx.mats, r, ctx.t_s, ctx.shaft, ctx.schedule,
                                             ctx.known_smooth_n, ctx.known_step_n, ctx.period_s)
     return replace(ctx, coefficients=r, y_nom_m=y_nom, v_nom_m_s=v_nom, z_nom_m=z_nom,
-                   start_columns_m=start_columns(ctx.mats, r, ctx.schedule, ctx.period_s,
-                                                 estimated=ctx.start_transient), _cache={})
+                   start_columns_m=_start_columns_of(ctx, r), _cache={})
 
 
 def rigid_model_is_stable(mats: RotorMatrices, coefficients: np.ndarray, speed_rad_s: float) -> bool:

@@ -28,8 +28,8 @@ from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, PRIOR_ROWS, Fit
 
 def fixed_columns(ctx: FitContext) -> int:
     """Columns ahead of an effect's in every design: 8 coefficient sensitivities, 4 DC gaps, the start
-    transient's (0 or 8)."""
-    return 12 + ctx.start_columns_m.shape[2]
+    transient's (0 or 8; 0 when the fitted effect's own columns carry it, :attr:`.FitContext.start_in_effect`)."""
+    return 12 + ctx.design_start_columns_m.shape[2]
 
 
 @dataclass(frozen=True)
@@ -49,7 +49,7 @@ class LinearSolution:
 
 def _design(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray:
     """``[J, D, S, cols]`` (N, 4, fixed_columns(ctx) + k)."""
-    parts = [ctx.jacobian, nuisance_columns(ctx.start_columns_m)]
+    parts = [ctx.jacobian, nuisance_columns(ctx.design_start_columns_m)]
     if cols is not None and cols.shape[2]:
         parts.append(cols)
     return np.concatenate(parts, axis=2)
@@ -310,7 +310,7 @@ def held_out_rms(ctx: FitContext, offset, cols, *, hold_coefficients: bool = Fal
     n = ctx.t_s.size
     cols = np.zeros((n, 4, 0)) if cols is None else cols
     target = ctx.y_m - ctx.y_nom_m - off
-    design = np.concatenate([nuisance_columns(ctx.start_columns_m), cols], axis=2)
+    design = np.concatenate([nuisance_columns(ctx.design_start_columns_m), cols], axis=2)
     a = design[ctx.fit_rows].reshape(-1, design.shape[2])
     norm = np.sqrt((a * a).sum(axis=0))
     norm[norm == 0] = 1.0

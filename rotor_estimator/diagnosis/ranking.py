@@ -28,7 +28,8 @@ from scipy.optimize import least_squares
 from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, PRIOR_ROWS, FitContext, coefficient_difference_steps,
                                               fit_nominal, nuisance_columns, recentered, rigid_model_is_stable,
-                                              stable_start, start_transient_sensitivity, with_coefficients)
+                                              stable_start, start_in_effect, start_transient_sensitivity,
+                                              with_coefficients)
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
                                               correlation_segment, gain_prior_rows, spectral_covariance,
@@ -296,6 +297,8 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     (:func:`.context.start_transient_sensitivity`); 8 re-simulations of each, so only the reported fits ask for
     it: :func:`with_coupled_covariance`.
     """
+    own_ctx = ctx
+    ctx = start_in_effect(ctx, [effect, *(b.effect for b in base)])
     n = ctx.t_s.size
     base_off = _sum([b.offset for b in base])
     base_cols = _stack([b.cols for b in base], n)
@@ -375,7 +378,7 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     resid = (ctx.y_m - sol.prediction_m)[ctx.mask]
     rss = float(np.sum(resid ** 2))  # from the prediction itself: immune to an ill-conditioned solve
     b_val = bic(rss + sol.prior_m2, sol.n_obs, nominal_params(ctx) + k_base + k_eff)
-    ref = reference_bic if reference_bic is not None else nominal_solution(ctx)[1]
+    ref = reference_bic if reference_bic is not None else nominal_solution(own_ctx)[1]
     eff_off = off
     eff_cols = cols
     if effect.nl_names and cols.shape[2] == 0:
@@ -385,7 +388,7 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
                      rss_m2=rss, n_obs=sol.n_obs, bic=b_val, delta_bic=ref - b_val,
                      held_out_rms_m=held_out_rms(ctx, all_off, all_cols, hold_coefficients=hold_coefficients),
                      residual_rms_m=np.sqrt(np.mean(resid ** 2, axis=0)), coefficients=coefficients_after(ctx, sol),
-                     prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=ctx, effect=effect,
+                     prediction_m=sol.prediction_m, offset=eff_off, cols=eff_cols, ctx=own_ctx, effect=effect,
                      base_lin=sol.theta[:b_cols.shape[2]], base_lin_cov=base_lin_cov, lin_cov=lin_cov,
                      coefficients_std=coefficients_std, net_fraction=net,
                      coefficients_cov=cov[:8, :8] * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE),
@@ -433,7 +436,7 @@ def parameter_covariance(ctx: FitContext, cols: np.ndarray, nl_sensitivity: np.n
     when the residual is not white (a model that leaves a 1X or impact-shaped misfit).
     """
     rows = ctx.mask
-    design = np.concatenate([_stack([ctx.jacobian, nuisance_columns(ctx.start_columns_m), cols], ctx.t_s.size),
+    design = np.concatenate([_stack([ctx.jacobian, nuisance_columns(ctx.design_start_columns_m), cols], ctx.t_s.size),
                              nl_sensitivity], axis=2)[rows]
     precision = np.zeros(design.shape[2])
     precision[:8] = np.diag(ctx.prior.design_rows()) ** 2  # the coefficient prior (MAP): information on dr
@@ -498,6 +501,8 @@ def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, 
     the effect's nonlinear parameters, the linear ones projected out, with the coefficient prior's rows (MAP),
     in micrometres; and its bounds. ``effect=None``: the nominal model's (the coefficients only). Shared by
     :func:`refine` and :func:`profiled_coefficient_cov`."""
+    if effect is not None:
+        ctx = start_in_effect(ctx, [effect, *(b.effect for b in base)])
     n = ctx.t_s.size
     rows = ctx.mask
     # the base's offset and columns depend on the coefficients only, unless the effect carries a base force
@@ -511,12 +516,12 @@ def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, 
             return _UNSTABLE * RESIDUAL_SCALE
         c2, base_parts = at_coefficients.get(x[:8] * COEFFICIENT_SCALE)
         if effect is None:
-            off, x_cols = None, c2.start_columns_m
+            off, x_cols = None, c2.design_start_columns_m
         else:
             b_off, b_cols, o, c = _compose(c2, effect, x[8:], [(b.effect, b.nl) for b in base],
                                            *_parts(c2, effect, x[8:], base, base_parts))
             off = _sum([b_off, o])
-            x_cols = _stack([c2.start_columns_m, b_cols, c], n)  # the start transient at these coefficients too
+            x_cols = _stack([c2.design_start_columns_m, b_cols, c], n)  # the start transient at these coefficients too
         target = c2.y_m - c2.y_nom_m - (0.0 if off is None else off)
         # a structural effect's offset is its model's output minus the rigid nominal's: with a diverging nominal
         # the two cancel to rounding noise (a "fit" below the noise floor was seen), so that point is a wall too
@@ -537,7 +542,7 @@ def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, 
         return np.concatenate([b_vec, ctx.prior.residual_m(x[:8] * COEFFICIENT_SCALE)]) * RESIDUAL_SCALE
 
     scale = float(np.sqrt(np.mean(ctx.y_m[rows] ** 2))) + 1e-12
-    n_start = ctx.start_columns_m.shape[2]
+    n_start = ctx.design_start_columns_m.shape[2]
     n_data = int(rows.sum()) * 4
     # the magnitude prior's rows of every member's gains: a fixed count whatever the trial point
     n_gains = 0 if effect is None else sum(len(e.lin_names(ctx)) for e in (effect, *(b.effect for b in base))

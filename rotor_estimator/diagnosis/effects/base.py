@@ -74,6 +74,10 @@ class Effect:
     #: Its pair on the top single is refitted jointly whatever the pair's first pass (it shows only once the
     #: coefficients move back from the values the top single absorbed it into).
     pair_always_refitted: ClassVar[bool] = False
+    #: Its model has free dynamics of its own (a structural effect: a foundation mass): in a record whose start
+    #: transient is estimated, its columns carry the free response of its own model from every initial state,
+    #: the rotor's included, in place of the rigid nominal's (:func:`.context.start_in_effect`).
+    owns_start_transient: ClassVar[bool] = False
 
     def variants(self) -> tuple["Effect", ...]:
         """The physical forms of this effect the search fits apart, keeping the best (default: itself only)."""

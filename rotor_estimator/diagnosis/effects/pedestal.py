@@ -27,10 +27,13 @@ class PedestalFlexibility(Effect):
     housing). The search fits every form (:meth:`variants`) and keeps the best; the report names it.
 
     In a record whose start transient is estimated (:attr:`.FitContext.start_transient`), its linear
-    parameters are the housings' initial velocities and displacements: the rigid nominal's start transient
-    (:func:`~rotor_estimator.diagnosis.context.start_columns`) has no foundation mode, and a record from
-    rest rings in it (a 40 Hz foundation decays over the whole record). A record that starts steady has
-    none (its housings start in the periodic state like the rotor).
+    parameters are the initial state of the rotor on its foundation, the housings' included: the free
+    response of this model from each state replaces the rigid nominal's start transient
+    (:attr:`owns_start_transient`). A record from rest rings in the foundation's mode (a 40 Hz foundation
+    decays over the whole record), and the rotor's own decay is that of the rotor on the foundation, not on
+    rigid ground: with the rigid one's, an independent common foundation from rest was fitted to the noise
+    by coefficients 4-5 of their std off. A record that starts steady has none (its housings start in the
+    periodic state like the rotor).
     """
 
     foundation: str = "separate"
@@ -54,6 +57,7 @@ class PedestalFlexibility(Effect):
     kind: ClassVar[str] = "structural"
     starts_from_prior: ClassVar[bool] = True
     pair_always_refitted: ClassVar[bool] = True
+    owns_start_transient: ClassVar[bool] = True
     responses: ClassVar[dict[str, str]] = {
         "housing_sensor": "shows housing motion at the rotor frequencies",
         "speed_change": "a resonance of the housing moves the 1X phase",
@@ -68,7 +72,8 @@ class PedestalFlexibility(Effect):
         if not ctx.start_transient:
             return ()
         nh = self._housings()
-        return tuple(f"housing_start_{q}{i}" for q in ("velocity_m_s_", "displacement_m_") for i in range(nh))
+        return tuple(f"rotor_start_state_{i}" for i in range(8)) \
+            + tuple(f"housing_start_{q}{i}" for q in ("velocity_m_s_", "displacement_m_") for i in range(nh))
 
     def nl_grid(self, ctx):
         return [np.array([np.log10(f), np.log10(0.05), np.log10(m)])
@@ -123,8 +128,7 @@ class PedestalFlexibility(Effect):
         build_a, b, c = carrier.response_model
         if not ctx.start_transient:
             return y - ctx.y_nom_m, np.zeros((ctx.t_s.size, 4, 0))
-        start = free_response(build_a, b, c[:4], ctx.period_s, ctx.schedule,
-                              states=np.arange(8, 8 + 2 * self._housings()))
+        start = free_response(build_a, b, c[:4], ctx.period_s, ctx.schedule, states=np.arange(8 + 2 * self._housings()))
         return y - ctx.y_nom_m, start
 
     def carrier(self, ctx, nl):

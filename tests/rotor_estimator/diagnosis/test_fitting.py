@@ -91,7 +91,8 @@ def _stub_context(rng, prior_std, t_n: int = 400):
     coefficients = np.array([4e5, 1e5, -1e5, 5e5, 900.0, 10.0, -10.0, 800.0])
     prior = CoefficientPrior(mean=np.array([3e5, 0.0, 0.0, 3e5, 1000.0, 0.0, 0.0, 1000.0]),
                              std=np.asarray(prior_std, float), noise_std_m=1e-6)
-    return SimpleNamespace(jacobian=jac, start_columns_m=np.zeros((t_n, 4, 0)), y_nom_m=np.zeros((t_n, 4)),
+    return SimpleNamespace(jacobian=jac, start_columns_m=np.zeros((t_n, 4, 0)),
+                           design_start_columns_m=np.zeros((t_n, 4, 0)), y_nom_m=np.zeros((t_n, 4)),
                            y_m=rng.standard_normal((t_n, 4)) * 3e-6, mask=np.ones(t_n, bool),
                            coefficients=coefficients, prior=prior)
 
