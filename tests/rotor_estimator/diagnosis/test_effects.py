@@ -247,3 +247,28 @@ def test_a_probe_map_acts_on_the_start_transient_too():
             assert abs(fit.physical["angle_error_yp2_deg"] - 10.0) < 0.01, fit.physical
     assert misfit["motion"] < 2e-9, misfit
     assert misfit["motion"] < 0.2 * misfit["periodic"], misfit
+
+
+@pytest.mark.parametrize("foundation,probes", [("separate", "absolute"), ("common", "relative")])
+def test_the_pedestal_start_transient_on_a_stiff_foundation_is_the_rigid_one(foundation, probes):
+    """Limit of the start transient the pedestal owns (Effect.owns_start_transient): on a 40 kHz, 50 kg foundation
+    the free response of the rotor on its foundation from each of the rotor's 8 initial states equals the rigid
+    model's start columns (FitContext.start_columns_m) to 0.1 % of their largest, and the fit's design leaves
+    them to the effect (no rigid start columns beside its own)."""
+    from rotor_estimator.core.simulator import Scenario, simulate
+    from rotor_estimator.diagnosis.context import start_in_effect
+
+    rf = load_rig_file()
+    rec = simulate(rf.rig, Scenario(duration_s=0.15, discard_initial_s=0.0, noise_std_m=0.3e-6), seed=3).recording
+    ctx = build_context(rec, rf.rig, rf.estimator)
+    assert ctx.start_transient
+    effect = PedestalFlexibility(foundation, probes)
+    _, cols = effect.basis(ctx, np.log10([40_000.0, 0.05, 50.0]))
+    n_housing = 4 if foundation == "separate" else 2
+    assert cols.shape[2] == 8 + 2 * n_housing == len(effect.lin_names(ctx))
+    rigid = ctx.start_columns_m
+    for i in range(8):
+        assert np.max(np.abs(cols[:, :, i] - rigid[:, :, i])) < 1e-3 * np.max(np.abs(rigid[:, :, i])), i
+    fit_ctx = start_in_effect(ctx, [effect])
+    assert fit_ctx.design_start_columns_m.shape[2] == 0 and fit_ctx.start_transient
+    assert start_in_effect(ctx, [ResidualUnbalance()]) is ctx
