@@ -515,6 +515,34 @@ def test_every_form_of_the_two_leading_effects_and_no_other_is_continued_before_
     assert forms_to_converge([f for f in fits if f.name != "probe_runout"]) == {"pedestal", "bearing_cubic"}
 
 
+def test_a_forms_converged_refit_also_starts_from_the_best_other_form_of_its_effect():
+    """Cross-form starts (best_other_form_start): a form is also started from the lowest-BIC other form of the
+    same effect whose nonlinear parameters have its size (the same meaning); never from itself, another effect,
+    or a form of another parameter count (the per-axis and the radial cubic); none for a single-form effect."""
+    from types import SimpleNamespace
+
+    from rotor_estimator.diagnosis.effects import PedestalFlexibility
+    from rotor_estimator.diagnosis.effects.bearing_cubic import BearingCubic, RadialBearingCubic
+    from rotor_estimator.diagnosis.ranking import best_other_form_start
+
+    def fit(effect, bic, nl):
+        return SimpleNamespace(name=effect.name, effect=effect, bic=bic, nl=np.asarray(nl, float),
+                               coefficients=np.full(8, bic))
+
+    ground = PedestalFlexibility("separate", "absolute")
+    housings = PedestalFlexibility("separate", "relative")
+    common = PedestalFlexibility("common", "absolute")
+    fits = [fit(ground, -60.0, [2.8, -1.3, 0.2]), fit(housings, -530.0, [1.7, -1.2, 1.1]),
+            fit(common, -40.0, [2.9, 0.0, 0.5]), fit(BearingCubic(), -700.0, [1.0, 1.0]),
+            fit(RadialBearingCubic(), -20.0, [1.0, 2.0, 3.0])]
+    (r, nl), = best_other_form_start(fits, fits[0])
+    assert np.array_equal(nl, fits[1].nl) and np.array_equal(r, fits[1].coefficients)
+    (_, nl), = best_other_form_start(fits, fits[1])  # the leader starts from the next best form
+    assert np.array_equal(nl, fits[0].nl)
+    assert best_other_form_start(fits, fits[3]) == () and best_other_form_start(fits, fits[4]) == ()
+    assert best_other_form_start(fits[:1], fits[0]) == ()
+
+
 def test_the_ranking_runs_with_blas_on_one_thread(monkeypatch):
     """rank_effects limits BLAS to one thread (its matrices are small: threaded BLAS only oversubscribes), even
     when the caller allows two; the probe stands in for its first step."""
