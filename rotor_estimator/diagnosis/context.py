@@ -32,7 +32,7 @@ unbalance was seen): the prior is what keeps them physical there; with an impact
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -299,9 +299,10 @@ def start_transient_sensitivity(ctx: "FitContext", start_state: np.ndarray) -> n
     +- 2.2e5 (the truth 3.8 reported std off, 1.95 noise variances up the misfit)."""
     s = np.asarray(start_state, float)
     out = np.zeros((ctx.t_s.size, 4, 8))
-    if ctx.design_start_columns_m.shape[2] == 0 or s.size != ctx.start_columns_m.shape[2] or not np.any(s):
+    columns = ctx.design_start_columns_m  # none when an effect's own columns carry the start transient
+    if columns.shape[2] == 0 or s.size != columns.shape[2] or not np.any(s):
         return out
-    base = np.einsum("nck,k->nc", ctx.start_columns_m, s)
+    base = np.einsum("nck,k->nc", columns, s)
     for i, step in enumerate(coefficient_difference_steps(ctx.coefficients)):
         shifted = np.asarray(ctx.coefficients, float).copy()
         shifted[i] += step * COEFFICIENT_SCALE[i]
@@ -325,8 +326,6 @@ def _nominal_products(rig, mats, r_hat, t, shaft, schedule, u_s, u_z, h):
 
 def recentered(ctx: "FitContext", coefficients: np.ndarray) -> "FitContext":
     """The same context linearized about other coefficients (one outer Gauss-Newton step)."""
-    from dataclasses import replace
-
     y_nom, v_nom, z_nom, jac = _nominal_products(ctx.rig, ctx.mats, np.asarray(coefficients, float), ctx.t_s,
                                                  ctx.shaft, ctx.schedule, ctx.known_smooth_n, ctx.known_step_n,
                                                  ctx.period_s)
@@ -347,8 +346,6 @@ def start_in_effect(ctx: "FitContext", effects) -> "FitContext":
     """``ctx`` for a fit of ``effects`` (None members ignored): when one of them owns the start transient
     (:attr:`.Effect.owns_start_transient`) and the record's is estimated, a copy whose designs leave it to that
     effect's columns (:attr:`FitContext.design_start_columns_m`); otherwise ``ctx`` itself."""
-    from dataclasses import replace
-
     if ctx.start_in_effect or not ctx.start_transient \
             or not any(e is not None and e.owns_start_transient for e in effects):
         return ctx
@@ -357,8 +354,6 @@ def start_in_effect(ctx: "FitContext", effects) -> "FitContext":
 
 def with_coefficients(ctx: "FitContext", coefficients: np.ndarray) -> "FitContext":
     """The context's nominal output at other coefficients, without the sensitivities (cheap)."""
-    from dataclasses import replace
-
     r = np.asarray(coefficients, float)
     y_nom, v_nom, z_nom = simulate_nominal(ctx.rig, ctx.mats, r, ctx.t_s, ctx.shaft, ctx.schedule,
                                             ctx.known_smooth_n, ctx.known_step_n, ctx.period_s)
