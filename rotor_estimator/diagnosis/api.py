@@ -21,7 +21,8 @@ from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, WARMUP_S, FitC
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.effects.base import separating_measurements
 from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, TIE_LR_QUANTILE,
-                                              TIE_MARGIN_BIC, EffectFit, Ranking, misfit, nominal_solution,
+                                              TIE_MARGIN_BIC, EffectFit, Ranking, coefficients_cov_over_models, misfit,
+                                              nominal_solution,
                                               parameter_covariance, profiled_or_local, rank_effects)
 from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
@@ -373,6 +374,9 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     if rk.best is None:  # the nominal model is the verdict: its coefficients' likelihood profile too
         say("coefficient uncertainty: likelihood profiles of the nominal model")
         nominal_cov_si = profiled_or_local(ctx, None, ctx.coefficients, np.zeros(0), nominal_cov_si)
+        # and the spread of the other models' optima, weighted by their evidence
+        nominal_cov_si = coefficients_cov_over_models(ctx.coefficients, nominal_cov_si, rk.nominal_bic,
+                                                      [*rk.singles, *rk.pairs])
     nominal_std = np.sqrt(np.abs(np.diag(nominal_cov_si)))
     table = [_row(ctx, "nominal", sol0.prediction_m, ho0, ctx.coefficients, nominal_std)]
     shown = []

@@ -183,6 +183,35 @@ def test_a_tied_effects_coefficients_count_as_an_optimum_as_good_as_the_verdicts
     assert np.array_equal(alone.coefficients_std, local)
 
 
+def test_model_average_adds_each_optimum_by_its_evidence_and_leaves_a_decided_verdict_alone():
+    """Bayesian model averaging about the verdict's point: another model's refit optimum a vector d away adds
+    ``w d d^T`` with ``w = e^(-dBIC/2) / (1 + e^(-dBIC/2))``: half of it when the two BICs are equal, almost all
+    of it when the other model is 17 ahead (a verdict of none below the significance threshold), nothing
+    measurable when the verdict is 30 ahead; a first-pass fit (no refit optimum) or a model without parameters
+    of its own adds nothing. The result is symmetric and never narrower than the verdict's own."""
+    from dataclasses import replace
+
+    from rotor_estimator.diagnosis.ranking import coefficients_cov_over_models
+
+    best, local = np.full(8, 1e5), np.full(8, 1e3)
+    own = np.diag(local ** 2)
+    d = np.linspace(-3e4, 4e4, 8)
+
+    def other(delta_bic, basins=((best + d, 1e-9, 1000),), n_params=2):
+        return replace(_fit_with_basins(best + d, local, list(basins)), bic=delta_bic, n_params=n_params)
+
+    assert np.allclose(coefficients_cov_over_models(best, own, 0.0, [other(0.0)]), own + np.outer(d, d) / 2)
+    ahead = coefficients_cov_over_models(best, own, 0.0, [other(-17.0)])
+    w = np.exp(8.5) / (1 + np.exp(8.5))
+    assert np.allclose(ahead, own + w * np.outer(d, d)) and w > 0.999
+    behind = coefficients_cov_over_models(best, own, 0.0, [other(30.0)])
+    assert np.all(np.abs(behind - own) <= 3.1e-7 * np.abs(np.outer(d, d)) + 1e-12)
+    assert coefficients_cov_over_models(best, own, 0.0, [other(-17.0, basins=())]) is own
+    assert coefficients_cov_over_models(best, own, 0.0, [other(-17.0, n_params=0)]) is own
+    both = coefficients_cov_over_models(best, own, 0.0, [other(0.0), other(2.0)])
+    assert np.allclose(both, both.T) and np.all(np.linalg.eigvalsh(both - own) >= -1e-6 * np.abs(both).max())
+
+
 def test_widened_covariance_agrees_with_the_widened_std_and_keeps_the_spread_direction():
     """The mixture's covariance is the local one plus ``sum w d d^T``: its diagonal is the widened std squared
     (so the two never disagree), and two equal optima a vector d apart add d d^T / 2, off-diagonal terms
