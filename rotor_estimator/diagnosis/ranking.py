@@ -63,11 +63,18 @@ REFINE_NFEV_MULTISTART = 12
 #: Successive halving of the multi-start refits (:func:`_successive_halving`): trial points of the first round,
 #: the share of starts that continue, and the start count up to which every start simply runs in full. A
 #: flexible shaft has 32 starts (15 structural ones, each from the nominal fit and from r0), most in basins
-#: that the first round already ranks low, so it is halved. A pedestal's 10 are run in full: halved, a common
-#: foundation recorded from rest lost its basin in the first round (24 Hz found against 67 Hz, a test).
+#: that the first round already ranks low, so it is halved. A pedestal's ladder and ringing starts from the
+#: nominal fit and from r0 are 14 with one residual peak, halved too; its ringing starts also run in full
+#: (:data:`EVIDENCE_NFEV`).
 HALVING_FIRST_NFEV = 4
 HALVING_KEEP = 1.0 / 3.0
 HALVING_MIN_STARTS = 10
+#: Trial points of each start read off the record (:meth:`.Effect.evidence_starts`), run outside the halving. A
+#: ROSS record of separate pedestals (40 Hz, damping ratio 0.021, 2.8x gap): from the start at its residual's
+#: 36.7 Hz peak the refit reached delta BIC 4 624 (39.9 Hz, 0.021, 6.7 kg against 40 Hz, 0.021, 6.65 kg) in 30,
+#: but after 4, 8 and 12 it was still above the nominal's cost, which starts that switch the pedestal off reach
+#: at once: the halving kept those, and probe gain won at 1 066.
+EVIDENCE_NFEV = 30
 #: Leading singles on top of which every other effect is tried as a pair.
 PAIR_BASES = 3
 #: Best pairs refitted jointly with the coefficients.
@@ -589,13 +596,15 @@ def _successive_halving(fun, lo: np.ndarray, hi: np.ndarray, x_starts: list[np.n
 def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
            reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = (),
            nl_starts: tuple[np.ndarray, ...] = (), start_pairs: tuple[tuple[np.ndarray, np.ndarray], ...] = (),
-           polish_nfev: int = 30) -> EffectFit:
+           polish_nfev: int = 30, evidence_starts: tuple[np.ndarray, ...] = ()) -> EffectFit:
     """Joint nonlinear refit of the 8 bearing coefficients with the effect (and the ``base`` effects).
 
     The first pass linearizes the nominal model about its own fit, which a large effect
     may have dragged far off; here the coefficients (and the effect's nonlinear parameters)
     are free in :func:`scipy.optimize.least_squares`, the linear ones projected out, and
-    the fit is kept only when its BIC improves.
+    the fit is kept only when its BIC improves. The starts are run by successive halving, except
+    ``evidence_starts`` (nonlinear points read off the record, from the fit's coefficients), each run to
+    ``max(max_nfev, EVIDENCE_NFEV)`` trial points.
     """
     n_nl = len(effect.nl_names)
     fun, lo, hi = joint_misfit(ctx, effect, base)
@@ -607,6 +616,14 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     x_starts = [np.clip(np.concatenate([np.asarray(r, float) / COEFFICIENT_SCALE, p]), lo + 1e-9, hi - 1e-9)
                 for r, p in starts]
     results, explored = _successive_halving(fun, lo, hi, x_starts, max_nfev)
+    for p in evidence_starts:  # read off the record: not ranked after a few evaluations with the generic starts
+        x0 = np.clip(np.concatenate([_stabilized(ctx, fit.coefficients) / COEFFICIENT_SCALE, np.asarray(p, float)]),
+                     lo + 1e-9, hi - 1e-9)
+        run = _least_squares_or_none(fun, x0, lo, hi, max(max_nfev, EVIDENCE_NFEV))
+        if run is not None:
+            results.append(run)
+            explored.append(run)
+    results.sort(key=lambda r: r.cost)
     if not results:
         return best
     if len(starts) > 1 and polish_nfev > 0:  # the two best starts continued (a short run may not rank basins)
@@ -1097,7 +1114,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             pairs_from_prior = tuple((ctx.prior_coefficients, p) for p in nl_starts) \
                 if eff.starts_from_prior else ()
             singles[i] = refine(ctx, eff, f, reference_bic=bic0, extra_starts=starts, nl_starts=nl_starts,
-                                start_pairs=pairs_from_prior,
+                                start_pairs=pairs_from_prior, evidence_starts=tuple(eff.evidence_starts(ctx)),
                                 max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
     # a gap: every form of the two leading effects is continued to convergence (FINAL_NFEV) before one stands
     # for its effect, so their race is not decided by which stopped nearer its optimum (a ROSS record of
@@ -1178,6 +1195,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                 if eff.starts_from_prior and eff.pair_always_refitted else ()
             pairs[i] = refine(actx, by_name[p.name], p, (a,), reference_bic=top.bic, extra_starts=from_prior,
                               nl_starts=nl_starts, start_pairs=pairs_from_prior,
+                              evidence_starts=tuple(eff.evidence_starts(actx)),
                               max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
         pairs.sort(key=lambda f: f.bic)
         # the leading pairs continued to convergence like the top single they must beat (FINAL_NFEV)

@@ -109,6 +109,12 @@ class Effect:
         """Extra nonlinear starting points of the joint refit with the coefficients (structural effects)."""
         return []
 
+    def evidence_starts(self, ctx: FitContext) -> list[np.ndarray]:
+        """Nonlinear starts read off the record itself (a mode ringing in the nominal residual), which the joint
+        refit runs to a full budget of their own instead of ranking them after a few evaluations with the
+        generic ones (default: none)."""
+        return []
+
     def basis(self, ctx: FitContext, nl: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
         raise NotImplementedError
 

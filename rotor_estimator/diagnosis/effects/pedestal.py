@@ -89,6 +89,10 @@ class PedestalFlexibility(Effect):
         ladder = [np.array([np.log10(f), np.log10(0.05), np.log10(2.0)]) for f in (60.0, 120.0, 250.0, 500.0)]
         return ladder + self.ringing_starts(ctx)
 
+    def evidence_starts(self, ctx):
+        """The starts at the modes ringing in the nominal residual (:meth:`ringing_starts`)."""
+        return self.ringing_starts(ctx)
+
     def ringing_starts(self, ctx, masses_kg: tuple[float, ...] = (2.0, 8.0),
                        damping_ratio: float = 0.03) -> list[np.ndarray]:
         """Starts at the non-synchronous peaks of the nominal residual (:func:`.residuals.nonsync_peak_frequencies_hz`).

@@ -492,6 +492,46 @@ def test_a_joint_refit_never_reports_a_point_the_exact_misfit_ranks_below_its_st
     assert rigid_model_is_stable(ctx.mats, refined.coefficients, ctx.mean_speed_rad_s)
 
 
+@pytest.mark.slow
+def test_a_start_read_off_the_record_runs_its_own_full_budget_beside_the_halved_ones(monkeypatch):
+    """:func:`refine` runs each evidence start (:meth:`.Effect.evidence_starts`: a mode ringing in the record)
+    once from the fit's coefficients with ``EVIDENCE_NFEV`` trial points, whatever the successive halving of
+    the other starts does (which gives each 4 before ranking them), and reports a fit whose exact misfit is no
+    worse than that run's optimum."""
+    from rotor_estimator.diagnosis import ranking
+    from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE
+    from rotor_estimator.diagnosis.effects import PedestalFlexibility
+    from rotor_estimator.diagnosis.ranking import (EVIDENCE_NFEV, HALVING_MIN_STARTS, exact_cost, fit_effect,
+                                                   joint_misfit, nominal_solution, refine)
+
+    ctx = _short_unbalance_context(impact=True)
+    effect = PedestalFlexibility().variants()[0]
+    bic0 = nominal_solution(ctx)[1]
+    first = fit_effect(ctx, effect, reference_bic=bic0)
+    generic = tuple(np.array([np.log10(f), np.log10(z), 0.3]) for f in (60.0, 120.0, 250.0, 500.0, 900.0, 1500.0)
+                    for z in (0.02, 0.1))
+    assert len(generic) + 1 > HALVING_MIN_STARTS  # the generic starts are halved
+    evidence = np.array([np.log10(45.0), np.log10(0.03), np.log10(8.0)])
+    calls = []
+    original = ranking._least_squares_or_none
+
+    def recorded(fun, x0, lo, hi, max_nfev):
+        run = original(fun, x0, lo, hi, max_nfev)
+        calls.append((np.array(x0), max_nfev, run))
+        return run
+
+    monkeypatch.setattr(ranking, "_least_squares_or_none", recorded)
+    refined = refine(ctx, effect, first, reference_bic=bic0, nl_starts=generic, evidence_starts=(evidence,),
+                     max_nfev=12)
+    own = [(x0, n, run) for x0, n, run in calls if np.allclose(x0[8:], evidence)]
+    assert len(own) == 1 and own[0][1] == EVIDENCE_NFEV
+    fun, lo, hi = joint_misfit(ctx, effect)
+    start = np.clip(ranking._stabilized(ctx, first.coefficients) / COEFFICIENT_SCALE, lo[:8] + 1e-9, hi[:8] - 1e-9)
+    assert np.allclose(own[0][0][:8], start)
+    assert sum(n == 4 for _, n, _ in calls) == len(generic) + 1  # the first round of the halving
+    assert exact_cost(fun, lo, hi, refined) <= own[0][2].cost * (1 + 1e-9)
+
+
 def test_the_covariance_predicts_how_2x_forces_move_with_the_coefficients_through_the_dynamic_stiffness():
     """Holding the coefficients 10 % off the truth (direct stiffness and damping) moves the fitted 2X forces by
     many of their uncoupled stds. The coupled covariance (:func:`effect_coefficient_sensitivity` in its design)
