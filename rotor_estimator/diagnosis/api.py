@@ -21,9 +21,9 @@ from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, WARMUP_S, FitC
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.effects.base import separating_measurements
 from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, TIE_LR_QUANTILE,
-                                              TIE_MARGIN_BIC, EffectFit, Ranking, coefficients_cov_over_models, misfit,
-                                              nominal_solution,
-                                              parameter_covariance, profiled_or_local, rank_effects)
+                                              TIE_MARGIN_BIC, EffectFit, Ranking, coefficients_cov_over_models,
+                                              misfit, nominal_solution, parameter_covariance, profiled_or_local,
+                                              rank_effects)
 from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
 #: Residual RMS over noise RMS above which the gap left after the verdict is reported as unexplained.

@@ -867,7 +867,7 @@ def coefficients_cov_over_models(coefficients: np.ndarray, cov_si: np.ndarray, b
     for f in others:
         if not f.basins or f.n_params <= 0 or not np.all(np.isfinite(f.coefficients)):
             continue  # a first-pass fit's coefficients are a linearized step, not an optimum of its model
-        w = float(np.exp(-0.5 * min(f.bic - bic_value, 1400.0)))
+        w = float(np.exp(-0.5 * np.clip(f.bic - bic_value, -1400.0, 1400.0)))  # finite either way
         if w >= MODEL_AVERAGE_MIN_WEIGHT:
             weights.append(w)
             shifts.append(np.asarray(f.coefficients, float) - coefficients)

@@ -206,6 +206,8 @@ def test_model_average_adds_each_optimum_by_its_evidence_and_leaves_a_decided_ve
     assert np.allclose(ahead, own + w * np.outer(d, d)) and w > 0.999
     behind = coefficients_cov_over_models(best, own, 0.0, [other(30.0)])
     assert np.all(np.abs(behind - own) <= 3.1e-7 * np.abs(np.outer(d, d)) + 1e-12)
+    far_ahead = coefficients_cov_over_models(best, own, 0.0, [other(-5000.0)])  # no overflow: all of d d^T
+    assert np.all(np.isfinite(far_ahead)) and np.allclose(far_ahead, own + np.outer(d, d))
     assert coefficients_cov_over_models(best, own, 0.0, [other(-17.0, basins=())]) is own
     assert coefficients_cov_over_models(best, own, 0.0, [other(-17.0, n_params=0)]) is own
     both = coefficients_cov_over_models(best, own, 0.0, [other(0.0), other(2.0)])
