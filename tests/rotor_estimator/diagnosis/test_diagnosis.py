@@ -287,3 +287,22 @@ def test_a_verdict_at_or_beyond_the_stability_limit_is_flagged_and_a_settled_one
     for rate in (-352.2, 0.0, 4e-4, 2.4, float("nan")):
         (warning,) = verdict_stability_warnings({"slowest_decay_1_per_s": rate}, 0.4)
         assert "stability limit" in warning and f"{rate:.3g} 1/s" in warning
+
+
+def test_a_verdict_that_pays_its_parameters_only_through_the_prior_is_flagged():
+    """The data part of a verdict's evidence, ``n ln(RSS_nominal / RSS_verdict)``, against BIC's price of its
+    parameters ``k ln n``: below it (a residual RMS 1.00002 times smaller for 4 parameters on 40 000 samples,
+    a record seen) the verdict carries a warning that names it and asks for an impact or a second speed; a
+    fit that pays for its parameters through the data, or nothing to compare, carries none."""
+    from rotor_estimator.diagnosis.api import prior_driven_warnings
+
+    n = 40000
+    rss0 = n * (1.6e-6) ** 2
+    (warning,) = prior_driven_warnings(rss0, rss0 / 1.00002 ** 2, n, 4, ["residual_unbalance"])
+    assert "residual_unbalance" in warning and "impact or a second speed" in warning
+    price = 4 * np.log(n)
+    paying = rss0 * np.exp(-(price + 1.0) / n)  # data evidence just above the price
+    assert prior_driven_warnings(rss0, paying, n, 4, ["residual_unbalance"]) == []
+    below = rss0 * np.exp(-(price - 1.0) / n)
+    assert len(prior_driven_warnings(rss0, below, n, 4, ["a", "b"])) == 1
+    assert prior_driven_warnings(0.0, rss0, n, 4, ["a"]) == [] and prior_driven_warnings(rss0, rss0, 0, 4, ["a"]) == []
