@@ -23,7 +23,7 @@ from rotor_estimator.diagnosis.effects.base import separating_measurements
 from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, TIE_LR_QUANTILE,
                                               TIE_MARGIN_BIC, EffectFit, Ranking, coefficients_cov_over_models,
                                               misfit, nominal_solution, parameter_covariance, profiled_or_local,
-                                              rank_effects)
+                                              rank_effects, sampled_nominal_cov)
 from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
 #: Residual RMS over noise RMS above which the gap left after the verdict is reported as unexplained.
@@ -374,6 +374,9 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     if rk.best is None:  # the nominal model is the verdict: its coefficients' likelihood profile too
         say("coefficient uncertainty: likelihood profiles of the nominal model")
         nominal_cov_si = profiled_or_local(ctx, None, ctx.coefficients, np.zeros(0), nominal_cov_si)
+        if only_steady_1x(ctx):  # a curved valley of coefficient sets: its posterior drawn instead
+            say("coefficient uncertainty: posterior draws of the nominal model (one steady speed, no impact)")
+            nominal_cov_si = sampled_nominal_cov(ctx, ctx.coefficients, nominal_cov_si)
         # and the spread of the other models' optima, weighted by their evidence
         nominal_cov_si = coefficients_cov_over_models(ctx.coefficients, nominal_cov_si, rk.nominal_bic,
                                                       [*rk.singles, *rk.pairs])
@@ -432,6 +435,12 @@ def prior_driven_warnings(nominal_rss_m2: float, verdict_rss_m2: float, n_obs: i
             "the bearing coefficient prior, its coefficients nearer the rig file's r0. The data do not tell it "
             "from other effects of the same signature (at one steady speed without an impact: unbalance, keyphasor "
             "offset, probe gain and orientation, a channel delay, 1X runout); record an impact or a second speed"]
+
+
+def only_steady_1x(ctx: FitContext) -> bool:
+    """True for a fit span with no impact and no start transient estimated (a record at one steady speed, whose
+    coefficients only its synchronous response shows)."""
+    return not ctx.start_transient and not bool(np.any(ctx.impact_force_n[ctx.mask] != 0.0))
 
 
 def verdict_stability_warnings(row: dict, span_s: float) -> list[str]:

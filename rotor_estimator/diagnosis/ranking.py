@@ -34,6 +34,7 @@ from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
                                               correlation_segment, gain_prior_rows, spectral_covariance,
                                               held_out_rms, linear_prior_weights, residual_after_fit, solve_linear)
+from rotor_estimator.diagnosis.posterior_sampling import draws_cov_about
 from rotor_estimator.diagnosis.secant_jacobian import least_squares_secant
 
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
@@ -744,6 +745,34 @@ def profiled_coefficient_cov(ctx: FitContext, effect: Effect | None, coefficient
         if sd_profile > sd:
             out += (sd_profile ** 2 - sd ** 2) * np.outer(d, d)
     return out * np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
+
+
+def sampled_nominal_cov(ctx: FitContext, coefficients: np.ndarray, cov_si: np.ndarray) -> np.ndarray:
+    """(8, 8) covariance (SI) of the nominal model's ``coefficients`` from draws of its posterior (exact misfit of
+    :func:`joint_misfit` with the coefficient prior's rows, noise variance from the optimum, an unstable rotor
+    excluded), about ``coefficients`` (:func:`.posterior_sampling.draws_cov_about`, started from ``cov_si``).
+
+    For a record of one steady speed without an impact, where the 1X pins the coefficients along a curved
+    valley (independent controls: the estimate 8 local stds off the truth, the truth inside the joint 95 %
+    region); ``cov_si`` unchanged when the ensemble cannot start."""
+    fun, lo, hi = joint_misfit(ctx, None)
+    scale = COEFFICIENT_SCALE
+    x_hat = np.asarray(coefficients, float) / scale
+    f0 = fun(x_hat)
+    sigma2 = float(f0 @ f0) / max(f0.size - PRIOR_ROWS, 1)
+
+    def log_density(x):
+        if np.any(x < lo) or np.any(x > hi) or not _stable(ctx, x * scale):
+            return -np.inf
+        f = fun(x)
+        v = float(f @ f)
+        return -0.5 * v / sigma2 if np.isfinite(v) else -np.inf
+
+    try:
+        cov = draws_cov_about(log_density, x_hat, np.asarray(cov_si, float) / np.outer(scale, scale))
+    except (ValueError, np.linalg.LinAlgError):
+        return cov_si
+    return cov * np.outer(scale, scale) if np.all(np.isfinite(cov)) else cov_si
 
 
 def profiled_or_local(ctx: FitContext, effect: Effect | None, coefficients: np.ndarray, nl: np.ndarray,
