@@ -842,6 +842,11 @@ def _with_basin_std(singles, pairs, best, second, tied):
             widened(second), [widened(f) for f in tied])
 
 
+def _weighted_outer_sum(w: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``sum_i w_i d_i d_i^T`` of the rows ``d_i`` of ``d`` (the spread that optima add to a covariance)."""
+    return np.einsum("i,ij,ik->jk", w, d, d)
+
+
 def coefficients_cov_with_basins(fit: EffectFit) -> np.ndarray:
     """(8, 8) covariance (SI) of a fit's coefficients over every local optimum its joint refits found.
 
@@ -868,7 +873,7 @@ def coefficients_cov_with_basins(fit: EffectFit) -> np.ndarray:
     w = np.exp(-0.5 * (rss - rss.min()) / sigma2)
     w /= w.sum()
     d = coef - fit.coefficients
-    return local + (w[:, None, None] * d[:, :, None] * d[:, None, :]).sum(axis=0)
+    return local + _weighted_outer_sum(w, d)
 
 
 #: Models weighing less than this (relative to the verdict's weight of one) are left out of the model average.
@@ -904,7 +909,7 @@ def coefficients_cov_over_models(coefficients: np.ndarray, cov_si: np.ndarray, b
         return cov
     w = np.array(weights) / (1.0 + float(np.sum(weights)))
     d = np.array(shifts)
-    return cov + (w[:, None, None] * d[:, :, None] * d[:, None, :]).sum(axis=0)
+    return cov + _weighted_outer_sum(w, d)
 
 
 def with_model_average(fit: EffectFit, others: list[EffectFit]) -> EffectFit:
