@@ -8,22 +8,62 @@ from typing import ClassVar
 
 import numpy as np
 
+from rotor_estimator.core.jit import njit
 from rotor_estimator.diagnosis.effects.base import CHANNELS, UNIT_SKEW_S, Effect
 
 
-def delayed(y_m: np.ndarray, v_m_s: np.ndarray, delay_s: float, period_s: float) -> np.ndarray:
+@njit(cache=True)
+def _hermite_delayed(y, m, shift, out):
+    """``out[i] = y(i - shift)`` (samples) by cubic Hermite interpolation on the samples ``y`` (N, K) and their
+    slopes per sample ``m`` (N, K); a time before the first sample or after the last takes that sample's value
+    (the record does not say what came before or after it)."""
+    n = y.shape[0]
+    whole = int(np.ceil(shift))
+    for i in range(n):
+        k0 = i - whole
+        u = (i - shift) - k0
+        if k0 < 0:
+            k0 = 0
+            u = 0.0
+        elif k0 > n - 2:
+            k0 = n - 2
+            u = 1.0
+        u2 = u * u
+        u3 = u2 * u
+        h00 = 2 * u3 - 3 * u2 + 1
+        h10 = u3 - 2 * u2 + u
+        h01 = -2 * u3 + 3 * u2
+        h11 = u3 - u2
+        for j in range(y.shape[1]):
+            out[i, j] = h00 * y[k0, j] + h10 * m[k0, j] + h01 * y[k0 + 1, j] + h11 * m[k0 + 1, j]
+
+
+@njit(cache=True)
+def _slopes_per_sample(y, out):
+    """``np.gradient(y, axis=0)`` of (N, K) samples (central differences, one-sided at the ends), per sample."""
+    n = y.shape[0]
+    for j in range(y.shape[1]):
+        out[0, j] = y[1, j] - y[0, j]
+        out[n - 1, j] = y[n - 1, j] - y[n - 2, j]
+        for i in range(1, n - 1):
+            out[i, j] = 0.5 * (y[i + 1, j] - y[i - 1, j])
+
+
+def delayed(y_m: np.ndarray, v_m_s: np.ndarray | None, delay_s: float, period_s: float) -> np.ndarray:
     """``y(t - delay)`` of a sampled signal by cubic Hermite interpolation on samples and derivatives.
 
-    ``y_m`` and ``v_m_s`` are (N,) or (N, K): K signals delayed alike, along the first axis."""
-    n = y_m.shape[0]
-    shift = delay_s / period_s
-    k0 = np.arange(n) - int(np.ceil(shift))
-    u = (np.arange(n) - shift) - k0
-    k0 = np.clip(k0, 0, n - 2)
-    u = u.reshape((n,) + (1,) * (y_m.ndim - 1))
-    p0, p1, m0, m1 = y_m[k0], y_m[k0 + 1], v_m_s[k0] * period_s, v_m_s[k0 + 1] * period_s
-    u2, u3 = u * u, u * u * u
-    return ((2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1)
+    ``y_m`` and ``v_m_s`` are (N,) or (N, K): K signals delayed alike, along the first axis. ``v_m_s=None``:
+    the derivative by central differences of the samples (``np.gradient``)."""
+    y = np.asarray(y_m, dtype=float)
+    y2 = y.reshape(y.shape[0], -1)
+    if v_m_s is None:
+        m2 = np.empty_like(y2)
+        _slopes_per_sample(y2, m2)
+    else:
+        m2 = np.asarray(v_m_s, dtype=float).reshape(y2.shape) * period_s
+    out = np.empty(y2.shape)
+    _hermite_delayed(y2, m2, float(delay_s / period_s), out)
+    return out.reshape(y.shape)
 
 
 #: Whole-sample delays tried per channel for the search's scan start (a DAQ that drops or buffers samples).
@@ -102,6 +142,6 @@ class TimingSkew(Effect):
         for c in range(4):
             if nl[c] == 0.0:
                 continue
-            sig = flat[:, c, :].copy()  # every column of the channel at once
-            flat[:, c, :] = delayed(sig, np.gradient(sig, ctx.period_s, axis=0), nl[c] * UNIT_SKEW_S, ctx.period_s)
+            # every column of the channel at once (the derivative by central differences)
+            flat[:, c, :] = delayed(flat[:, c, :], None, nl[c] * UNIT_SKEW_S, ctx.period_s)
         return flat.reshape(out.shape)

@@ -214,6 +214,30 @@ def test_exact_delay_matches_a_shifted_sine():
     assert np.array_equal(together, np.column_stack([delayed(ys[:, k], vs[:, k], 37e-6, h) for k in range(3)]))
 
 
+def test_delay_agrees_with_scipys_cubic_hermite_spline():
+    """Agreement with an independent implementation: inside the record, the compiled delay equals scipy's
+    ``CubicHermiteSpline`` through the samples evaluated at ``t - tau`` (given slopes, and the slopes by central
+    differences when none are given), for fractional, whole-sample and negative delays and strided columns;
+    outside the record, the first or last sample is held."""
+    from scipy.interpolate import CubicHermiteSpline
+
+    from rotor_estimator.diagnosis.effects.timing_skew import delayed
+
+    rng = np.random.default_rng(5)
+    h = 50e-6
+    t = np.arange(600) * h
+    signals = rng.normal(size=(600, 3, 4))[:, 1, :]  # a strided (non-contiguous) block of columns
+    slopes = rng.normal(size=(600, 4))
+    for tau in (13e-6, -37e-6, 150e-6, -200e-6, 333e-6):
+        inside = (t - tau >= 0) & (t - tau <= t[-1])
+        with_slopes = CubicHermiteSpline(t, signals, slopes)(t - tau)
+        assert np.allclose(delayed(signals, slopes, tau, h)[inside], with_slopes[inside], rtol=0, atol=1e-12)
+        by_differences = CubicHermiteSpline(t, signals, np.gradient(signals, h, axis=0))(t - tau)
+        assert np.allclose(delayed(signals, None, tau, h)[inside], by_differences[inside], rtol=0, atol=1e-12)
+        held = delayed(signals, slopes, tau, h)[~inside]
+        assert np.array_equal(held, np.broadcast_to(signals[0] if tau > 0 else signals[-1], held.shape))
+
+
 def test_data_accounting_counts_each_left_out_sample_and_warns_without_an_impact():
     """Every sample not used is counted under its reason; an impact-free record carries the warning."""
     from types import SimpleNamespace
