@@ -82,11 +82,32 @@ def linear_prior_weights(ctx: FitContext, cols: np.ndarray | None) -> np.ndarray
     """
     if cols is None or cols.shape[2] == 0:
         return np.zeros(0)
-    rows = ctx.mask
-    y = ctx.y_m[rows]
-    y_rms = float(np.sqrt(np.mean((y - y.mean(axis=0)) ** 2)))
-    col_rms = np.sqrt(np.mean(cols[rows] ** 2, axis=(0, 1)))
-    return ctx.prior.noise_std_m * col_rms / (LINEAR_PRIOR_SIGNAL_RATIO * max(y_rms, 1e-300))
+    return linear_prior_weights_on_rows(ctx, cols[ctx.mask])
+
+
+def linear_prior_weights_on_rows(ctx: FitContext, picked: np.ndarray) -> np.ndarray:
+    """:func:`linear_prior_weights` of columns already taken on the fit's rows, ``cols[ctx.mask]``."""
+    if picked.shape[2] == 0:
+        return np.zeros(0)
+    col_rms = np.sqrt(np.einsum("nck,nck->k", picked, picked) / (picked.shape[0] * picked.shape[1]))
+    return ctx.prior.noise_std_m * col_rms / (LINEAR_PRIOR_SIGNAL_RATIO * max(_signal_rms_m(ctx.y_m, ctx.mask), 1e-300))
+
+
+#: The last ``(y, rows, rms)`` of :func:`_signal_rms_m`: every fit of one record asks for the same value, tens of
+#: thousands of times (the arrays are held, so their identity cannot be reused by others).
+_last_signal_rms: tuple | None = None
+
+
+def _signal_rms_m(y_m: np.ndarray, rows: np.ndarray) -> float:
+    """RMS of the measured probes ``y_m`` on ``rows``, each channel's mean removed."""
+    global _last_signal_rms
+    last = _last_signal_rms
+    if last is not None and last[0] is y_m and last[1] is rows:
+        return last[2]
+    y = y_m[rows]
+    value = float(np.sqrt(np.mean((y - y.mean(axis=0)) ** 2)))
+    _last_signal_rms = (y_m, rows, value)
+    return value
 
 
 def gain_prior_rows(weights: np.ndarray, n_columns: int) -> np.ndarray:
@@ -157,12 +178,12 @@ def residual_after_fit(x: np.ndarray, b: np.ndarray) -> np.ndarray:
         return b
     norm = np.sqrt(np.einsum("ij,ij->j", x, x))
     norm[norm == 0] = 1.0
-    xn = x / norm
-    w, v = np.linalg.eigh(xn.T @ xn)
+    # the unit-normed columns' Gram matrix and right-hand side, without a normed copy of the tall design
+    w, v = np.linalg.eigh((x.T @ x) / np.outer(norm, norm))
     keep = w > GRAM_RCOND * max(float(w[-1]), 1e-300)
     v = v[:, keep]
-    coef = v @ ((v.T @ (xn.T @ b)) / w[keep])
-    return b - xn @ coef
+    coef = v @ ((v.T @ ((x.T @ b) / norm)) / w[keep])
+    return b - x @ (coef / norm)
 
 
 class Projector:

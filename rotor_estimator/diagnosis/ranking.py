@@ -33,7 +33,8 @@ from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, PRIOR_ROWS, Fi
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
                                               correlation_segment, gain_prior_rows, spectral_covariance,
-                                              held_out_rms, linear_prior_weights, residual_after_fit, solve_linear)
+                                              held_out_rms, linear_prior_weights, linear_prior_weights_on_rows,
+                                              residual_after_fit, solve_linear)
 from rotor_estimator.diagnosis.posterior_sampling import draws_cov_about
 from rotor_estimator.diagnosis.secant_jacobian import least_squares_secant
 
@@ -533,18 +534,21 @@ def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, 
         target = c2.y_m - c2.y_nom_m - (0.0 if off is None else off)
         # a structural effect's offset is its model's output minus the rigid nominal's: with a diverging nominal
         # the two cancel to rounding noise (a "fit" below the noise floor was seen), so that point is a wall too
+        picked = x_cols[rows]  # the one copy of the columns on the fit's rows
         if not (np.all(np.abs(target[rows]) < _DIVERGED_M) and np.all(np.abs(c2.y_nom_m[rows]) < _DIVERGED_M)) \
-                or not np.all(np.isfinite(x_cols[rows])):
+                or not np.all(np.isfinite(picked)):
             return _UNSTABLE * RESIDUAL_SCALE  # an unstable model at this trial point: a large finite misfit
         b_vec = target[rows]
         b_vec = (b_vec - b_vec.mean(axis=0)).ravel()
-        if x_cols.shape[2]:
-            xc = x_cols[rows]
-            xc = (xc - xc.mean(axis=0)).reshape(-1, x_cols.shape[2])
-            # the effects' gains with their magnitude prior's rows (MAP; the start transient has none)
-            weights = linear_prior_weights(c2, x_cols[:, :, n_start:])
-            b_vec = residual_after_fit(np.vstack([xc, gain_prior_rows(weights, x_cols.shape[2])]),
-                                       np.concatenate([b_vec, np.zeros(weights.size)]))
+        k = picked.shape[2]
+        if k:
+            # the effects' gains with their magnitude prior's rows (MAP; the start transient has none), below the
+            # centred columns in one array
+            weights = linear_prior_weights_on_rows(c2, picked[:, :, n_start:])
+            design = np.empty((n_data + weights.size, k))
+            np.subtract(picked, picked.mean(axis=0), out=design[:n_data].reshape(picked.shape))
+            design[n_data:] = gain_prior_rows(weights, k)
+            b_vec = residual_after_fit(design, np.concatenate([b_vec, np.zeros(weights.size)]))
         b_vec = np.concatenate([b_vec, np.zeros(n_gains - (b_vec.size - n_data))])  # no gains: no rows
         # the coefficient prior's pseudo-observations (MAP), as in every other fit
         return np.concatenate([b_vec, ctx.prior.residual_m(x[:8] * COEFFICIENT_SCALE)]) * RESIDUAL_SCALE
