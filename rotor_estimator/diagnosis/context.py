@@ -44,7 +44,7 @@ from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.core.model import RotorMatrices, imbalance_force, impact_force, rotor_matrices
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.diagnosis import models
-from rotor_estimator.diagnosis.linsim import SpeedSchedule, free_response, simulate_linear
+from rotor_estimator.diagnosis.linsim import SpeedSchedule, free_response, simulate_linear, simulate_linear_many
 
 #: Scale of the 8 coefficients in the output-error fit (N/m and N*s/m).
 COEFFICIENT_SCALE = np.array([1e5] * 4 + [1e3] * 4)
@@ -214,6 +214,20 @@ class FitContext:
         out, _ = simulate_linear(build_a, b, c, self.period_s, self.schedule, self.shaft.angle_rad, u_smooth, u_step,
                                  cache=self._cache.setdefault(("response", tuple(np.round(r, 9))), {}))
         return out[:, :4]
+
+    def responses(self, u_smooth: list[np.ndarray]) -> np.ndarray:
+        """:meth:`response` to each of K smooth generalized forces (each (N, 4)), as columns (N, 4, K), in one pass
+        (:func:`.linsim.simulate_linear_many`: each column equal to its own :meth:`response`)."""
+        r = self.coefficients
+        if self.response_model is None:
+            mats = self.mats
+            build_a, b, c = (lambda w: models.rigid_state_matrix(mats, r, w)), models.rigid_input(mats), \
+                models.rigid_output(mats)
+        else:
+            build_a, b, c = self.response_model
+        out = simulate_linear_many(build_a, b, c, self.period_s, self.schedule, self.shaft.angle_rad, u_smooth,
+                                   cache=self._cache.setdefault(("response", tuple(np.round(r, 9))), {}))
+        return out[:, :4, :]
 
     @property
     def period_s(self) -> float:

@@ -213,6 +213,66 @@ def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np
 
 
 @njit(cache=True)
+def _propagate_many(phi, g1, g2, block, us, q0, c_out):
+    """:func:`_propagate` of K smooth inputs at once (no step input): ``us`` (N, m, K), ``q0`` (n, K); returns
+    the outputs (N, p, K). The same sums in the same order, so each column equals its own run bit for bit;
+    the K independent recursions interleave, where one alone waits on its own previous state."""
+    n_samples = us.shape[0]
+    n = q0.shape[0]
+    m = us.shape[1]
+    n_cols = us.shape[2]
+    p = c_out.shape[0]
+    s = q0.copy()
+    nxt = np.empty((n, n_cols))
+    out = np.empty((n_samples, p, n_cols))
+    for k in range(n_samples):
+        for r in range(p):
+            for col in range(n_cols):
+                out[k, r, col] = 0.0
+            for j in range(n):
+                cr = c_out[r, j]
+                for col in range(n_cols):
+                    out[k, r, col] += cr * s[j, col]
+        if k == n_samples - 1:
+            break
+        b = block[k]
+        for i in range(n):
+            for col in range(n_cols):
+                nxt[i, col] = 0.0
+            for j in range(n):
+                f = phi[b, i, j]
+                for col in range(n_cols):
+                    nxt[i, col] += f * s[j, col]
+            for j in range(m):
+                a1 = g1[b, i, j]
+                a2 = g2[b, i, j]
+                for col in range(n_cols):
+                    nxt[i, col] += a1 * us[k, j, col] + a2 * (us[k + 1, j, col] - us[k, j, col])
+        for i in range(n):
+            for col in range(n_cols):
+                s[i, col] = nxt[i, col]
+    return out
+
+
+def simulate_linear_many(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,
+                         schedule: SpeedSchedule, angle_rad: np.ndarray, u_smooth: list[np.ndarray], *,
+                         cache: dict | None = None) -> np.ndarray:
+    """Outputs (N, p, K) of :func:`simulate_linear` (steady start, no step input) for each of the K smooth
+    inputs ``u_smooth`` (each (N, m)), in one pass: each column equals its own :func:`simulate_linear` run."""
+    n = b.shape[0]
+    phi, g1, g2 = _discretized_blocks(build_a, b, h_s, schedule, cache)
+    us = np.ascontiguousarray(np.stack([np.asarray(u, dtype=float) for u in u_smooth], axis=2))
+    q0 = np.zeros((n, us.shape[2]))
+    w0 = float(schedule.speeds_rad_s[0])
+    for i in range(us.shape[2]):
+        if np.any(us[:, :, i]):
+            ph = _first_revolutions_phasors(us[:, :, i], angle_rad, w0, h_s)
+            q0[:, i] = _cached_steady_state(build_a, b, ph, w0, float(angle_rad[0]), cache)
+    return _propagate_many(phi, g1, g2, np.ascontiguousarray(schedule.block_of_sample), us, q0,
+                           np.ascontiguousarray(c, dtype=float))
+
+
+@njit(cache=True)
 def _free_response(phi, block, c_out, s0, n_samples, floor):
     """``out[k, :, i] = C Phi_k ... Phi_1 s0[:, i]``: the output of each initial state ``s0[:, i]`` (no input).
 

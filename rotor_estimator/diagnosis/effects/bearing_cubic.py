@@ -53,7 +53,7 @@ class BearingCubic(Effect):
         fy = np.zeros_like(z)
         fx[:, [0, 2]] = -UNIT_CUBIC_N_PER_M3 * z[:, [0, 2]] ** 3
         fy[:, [1, 3]] = -UNIT_CUBIC_N_PER_M3 * z[:, [1, 3]] ** 3
-        return np.stack([ctx.response(fx), ctx.response(fy)], axis=2)
+        return ctx.responses([fx, fy])
 
     def nl_grid(self, ctx):
         cols = self._first_order_columns(ctx)[ctx.mask]

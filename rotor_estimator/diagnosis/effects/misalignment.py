@@ -40,13 +40,13 @@ class Misalignment(Effect):
     def basis(self, ctx, nl):
         two = 2 * ctx.shaft.angle_rad
         zero = np.zeros_like(two)
-        cols = []
+        forces = []
         for s in (ctx.rig.bearing1_position_m, ctx.rig.bearing2_position_m):
-            cols += [ctx.response(models.point_generalized_force(ctx.rig, s, np.cos(two), zero)),
-                     ctx.response(models.point_generalized_force(ctx.rig, s, np.sin(two), zero)),
-                     ctx.response(models.point_generalized_force(ctx.rig, s, zero, np.cos(two))),
-                     ctx.response(models.point_generalized_force(ctx.rig, s, zero, np.sin(two)))]
-        return None, np.stack(cols, axis=2)
+            forces += [models.point_generalized_force(ctx.rig, s, np.cos(two), zero),
+                       models.point_generalized_force(ctx.rig, s, np.sin(two), zero),
+                       models.point_generalized_force(ctx.rig, s, zero, np.cos(two)),
+                       models.point_generalized_force(ctx.rig, s, zero, np.sin(two))]
+        return None, ctx.responses(forces)
 
     def physical(self, nl, lin):
         out = {}

@@ -30,9 +30,8 @@ class ResidualUnbalance(Effect):
         return ("u1_cos_g_mm", "u1_sin_g_mm", "u2_cos_g_mm", "u2_sin_g_mm")
 
     def basis(self, ctx, nl):
-        cols = [ctx.response(unbalance_force(ctx, s, ph, UNIT_UNBALANCE_KG_M))
-                for s in unbalance_planes(ctx) for ph in (0.0, np.pi / 2)]
-        return None, np.stack(cols, axis=2)
+        return None, ctx.responses([unbalance_force(ctx, s, ph, UNIT_UNBALANCE_KG_M)
+                                    for s in unbalance_planes(ctx) for ph in (0.0, np.pi / 2)])
 
     def physical(self, nl, lin):
         u1, u2 = complex(lin[0], lin[1]), complex(lin[2], lin[3])
