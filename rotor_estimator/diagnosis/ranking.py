@@ -260,6 +260,16 @@ def _carries_base(effect: Effect, base: tuple[EffectFit, ...]) -> bool:
     return type(effect).carrier is not Effect.carrier and any(b.effect is not None and b.effect.forcing for b in base)
 
 
+def _companions(a: Effect | None, b: Effect | None) -> bool:
+    """True when either effect's form leaves a part of its signature to the other (:meth:`.Effect.companions`)."""
+    return a is not None and b is not None and (b.name in a.companions() or a.name in b.companions())
+
+
+def _base_effect(singles: list["EffectFit"], pair: "EffectFit") -> Effect | None:
+    """The effect (its fitted form) of ``pair``'s base among the ``singles``."""
+    return next((f.effect for f in singles if f.name == pair.base[0]), None)
+
+
 def misfit(fit: "EffectFit") -> float:
     """``-2 ln L`` (up to a constant) of a fit's Gaussian output error: ``n ln(RSS / n)`` (BIC without ``k ln n``)."""
     return float(fit.n_obs * np.log(max(fit.rss_m2, 1e-300) / fit.n_obs))
@@ -1219,13 +1229,18 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         # about the coefficients the base's single fit dragged to absorb the delay too (misalignment with a
         # 100 us skew ranked 11th in its first pass and was called runout)
         to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].transforms_signal}
+        # and every pair of an effect's form with the effect that carries what the form leaves out (its companion):
+        # the form's single fit dragged the coefficients to absorb that part (a coupling's forward 1X), so the
+        # pair's first pass, linearized there, cannot show it
+        to_refine |= {i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_effect(singles, p))}
         for i in sorted(to_refine):
             p = pairs[i]
             a = next(f for f in singles if f.name == p.base[0])
             actx = a.ctx or ctx
             nl_starts = tuple(by_name[p.name].refine_starts(actx))
             eff = by_name[p.name]
-            from_prior = (actx.prior_coefficients,) if eff.starts_from_prior or eff.transforms_signal else ()
+            from_prior = (actx.prior_coefficients,) if eff.starts_from_prior or eff.transforms_signal \
+                or _companions(eff, a.effect) else ()
             # a pedestal or hardening also starts from the prior r0 at each of its structural starts, as its
             # single does: its partner's single fit may have dragged the coefficients into a basin where it is
             # invisible (the bending mode's 15 starts are left out for time: it is not pair_always_refitted)

@@ -83,6 +83,12 @@ class Effect:
         """The physical forms of this effect the search fits apart, keeping the best (default: itself only)."""
         return (self,)
 
+    def companions(self) -> tuple[str, ...]:
+        """Effects that carry a part of this form's physical signature the form itself leaves out (the forward 1X
+        of a coupling's offset is an unbalance's force, :class:`.Misalignment`): the pair of the two is refitted
+        jointly with the coefficients, from the prior r0 too, whatever its first pass (default: none)."""
+        return ()
+
     @property
     def form(self) -> str:
         """Which of :meth:`variants` this is, in words (empty for a single-form effect)."""
