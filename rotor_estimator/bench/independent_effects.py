@@ -202,6 +202,31 @@ def _mis_apply(fixed: bool):
     return apply
 
 
+def _coupling_draw(rng, ctx):
+    z1, z2 = sorted(ctx["model"].geometry.bearing_positions_m)
+    overhang = float(rng.uniform(0.02, 0.08))
+    return {"station_m": z1 - overhang if rng.random() < 0.5 else z2 + overhang,
+            "direction": float(rng.uniform(0, np.pi)), "ratio1": float(rng.uniform(0.2, 1.0)),
+            "phase": rng.uniform(0, 2 * np.pi, 2).tolist(), "preload_n": (rng.normal(size=2) * 30).tolist()}
+
+
+def _coupling_apply(s, sh, model, meas):
+    """A parallel offset through a flexible coupling on the shaft's overhang, outside the bearings: its reaction
+    along the offset's fixed direction at 1X and 2X (amplitudes ``ratio1 s`` and ``s``, N; each of both whirls)
+    and a static preload. The label also states the force pair at the bearings that a rigid rotor cannot tell
+    from it (the lever rule: the same force and moment)."""
+    station, (z1, z2) = sh["station_m"], model.geometry.bearing_positions_m
+    cos_d, sin_d = math.cos(sh["direction"]), math.sin(sh["direction"])
+    forces = [HarmonicForce(station, 0, complex(sh["preload_n"][0]), complex(sh["preload_n"][1]))]
+    params: dict = {"station_m": station, "direction_rad": sh["direction"], "preload_n": sh["preload_n"]}
+    for h, amp in ((1, s * sh["ratio1"] * np.exp(1j * sh["phase"][0])), (2, s * np.exp(1j * sh["phase"][1]))):
+        fx, fy = complex(amp * cos_d), complex(amp * sin_d)
+        forces.append(HarmonicForce(station, h, fx, fy))
+        params[f"bearing_force_{h}x_n"] = [[[w * fx.real, w * fx.imag], [w * fy.real, w * fy.imag]]
+                                           for w in ((z2 - station) / (z2 - z1), (station - z1) / (z2 - z1))]
+    return _add_forces(model, forces), meas, params
+
+
 def _foundation_apply(relative: bool):
     def apply(s, sh, model, meas):
         f_hz = 2000.0 / math.sqrt(s)
@@ -286,6 +311,8 @@ FORMS: tuple[Form, ...] = (
          _mis_draw(True), _mis_apply(True)),
     Form("misalignment", "forward_backward_2x+preload", "N", lambda c, s: 10.0, lambda c, s: 250.0,
          _mis_draw(False), _mis_apply(False)),
+    Form("misalignment", "coupling_offset_1x_2x+preload", "N", lambda c, s: 10.0, lambda c, s: 250.0,
+         _coupling_draw, _coupling_apply),
     Form("pedestal", "common_foundation:relative_probes", "(2000 Hz / f)^2", lambda c, s: 25.0,
          lambda c, s: (2000.0 / 40.0) ** 2,
          lambda rng, c: {"mass_kg": float(rng.uniform(2.0, 15.0)), "damping_ratio": float(rng.uniform(0.02, 0.15))},

@@ -15,7 +15,9 @@ counterpart is scored, each mapping derived from the two generators' definitions
   ``plane<i>_unbalance_g_mm`` and ``plane<i>_phase_deg``;
 * radial cubic bearing ``f = -k3 |d|^2 d`` -> ``k3_N_per_m3`` of the radial form; per-axis cubics -> ``k3x/k3y``;
 * foundation or pedestal: its uncoupled frequency ``sqrt(k / m) / 2 pi`` and damping ratio ``c / 2 sqrt(k m)``;
-* a 2X force ``Re(F e^{2 i theta})`` per bearing axis -> ``force_2x_<bearing>_<axis>_amplitude_n = |F|``;
+* a 2X force ``Re(F e^{2 i theta})`` per bearing axis -> ``force_2x_<bearing>_<axis>_amplitude_n = |F|``; a 1X
+  force ``fx = Re(X e^{i theta})``, ``fy = Re(Y e^{i theta})`` -> its backward part
+  ``force_1x_<bearing>_backward_n = |conj(X) + i conj(Y)| / 2`` (its forward part is an unbalance's);
 * runout harmonics ``a_h cos(h theta + phase)`` on a channel -> ``<ch>_runout_peak_m = sqrt(2 sum a_h^2)``
   (the library's definition), on the channels that carry runout (an amplitude of zero has no two-sided interval);
 
@@ -88,6 +90,8 @@ def independent_truth(effect: str, params: dict, planes_m: tuple[float, float],
         for b, ((xr, xi), (yr, yi)) in zip(BEARINGS, params["bearing_force_2x_n"]):
             out[f"force_2x_{b}_x_amplitude_n"] = math.hypot(xr, xi)
             out[f"force_2x_{b}_y_amplitude_n"] = math.hypot(yr, yi)
+        for b, ((xr, xi), (yr, yi)) in zip(BEARINGS, params.get("bearing_force_1x_n", [])):
+            out[f"force_1x_{b}_backward_n"] = abs(complex(xr, -xi) + 1j * complex(yr, -yi)) / 2
         return out
     if effect == "probe_runout" and "terms_channel_harmonic_m_rad" in params:
         amps: dict[int, list[float]] = {}

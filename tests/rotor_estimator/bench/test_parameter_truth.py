@@ -10,6 +10,7 @@ import pytest
 
 from rotor_estimator.bench.diagnosis import score
 from rotor_estimator.bench.parameter_truth import covered, independent_truth, lever_rule, own_truth
+from rotor_estimator.diagnosis.effects.misalignment import Misalignment
 from rotor_estimator.diagnosis.effects.probe_gain_orientation import ProbeGainOrientation
 from rotor_estimator.diagnosis.effects.residual_unbalance import ResidualUnbalance
 
@@ -52,6 +53,28 @@ def test_own_unbalance_reads_as_the_library_reports_it():
     truth = own_truth("residual_unbalance", {"residual_unbalance_kg_m": u_kg_m})
     for name, value in truth.items():
         assert value == pytest.approx(reported[name])
+
+
+def test_a_1x_force_reads_as_the_backward_part_the_library_reports():
+    """The generator's 1X force ``fx = Re(X e^{i theta})``, ``fy = Re(Y e^{i theta})`` at each bearing: the library's
+    backward column pair ``(re cos + im sin, -re sin + im cos)`` written so gives back ``hypot(re, im)`` through
+    ``Misalignment(True).physical``; a forward (unbalance) force has no backward part, a fixed-direction one half
+    its amplitude."""
+    re_im = ((3.0, -4.0), (0.5, 1.2))  # N, per bearing
+    lin = np.concatenate([np.zeros(8), np.ravel(re_im)])
+    reported = Misalignment(True).physical(np.zeros(0), lin)
+    as_generated = [[[re, -im], [im, re]] for re, im in re_im]  # X = re - i im, Y = im + i re
+    truth = independent_truth("misalignment", {"bearing_force_1x_n": as_generated,
+                                               "bearing_force_2x_n": [[[0, 0], [0, 0]]] * 2}, (0.0, 1.0), 20e3)
+    for b in ("b1", "b2"):
+        assert truth[f"force_1x_{b}_backward_n"] == pytest.approx(reported[f"force_1x_{b}_backward_n"])
+    f = complex(2.0, 1.0)
+    forward = independent_truth("misalignment", {"bearing_force_1x_n": [[[f.real, f.imag], [(-1j * f).real,
+                                                 (-1j * f).imag]]] * 2, "bearing_force_2x_n": []}, (0.0, 1.0), 20e3)
+    assert forward["force_1x_b1_backward_n"] == pytest.approx(0.0, abs=1e-12)
+    fixed = independent_truth("misalignment", {"bearing_force_1x_n": [[[6.0, 0.0], [0.0, 0.0]]] * 2,
+                                               "bearing_force_2x_n": []}, (0.0, 1.0), 20e3)
+    assert fixed["force_1x_b2_backward_n"] == pytest.approx(3.0)
 
 
 def test_skew_is_the_delay_on_the_named_channels_only():
