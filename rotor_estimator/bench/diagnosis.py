@@ -83,7 +83,11 @@ def diagnose_case(case_dir: str) -> dict:
             "coefficients": list(s["coefficients_verdict"].values()),
             "coefficients_std": list(s["coefficients_verdict_std"].values()),
             "top_two": s["top_two"], "before": s["residual_rms_before"], "after": s["residual_rms_after"],
-            "shrink_ratio": s["shrink_ratio"], "ranking": [(r["effect"], r["delta_bic"]) for r in s["ranking"][:3]],
+            "shrink_ratio": s["shrink_ratio"],
+            # the whole ranking of singles and the best pairs, with their parameter counts and the tie's margins,
+            # so that a decision rule can be re-scored offline without diagnosing again
+            "ranking": [(r["effect"], r["delta_bic"], r["n_params"]) for r in s["ranking"]],
+            "ranking_pairs": s["ranking_pairs"], "tie_detail": s["tie"],
             # the verdict's effect parameters with their reported std (scored by :func:`_parameter_coverage`)
             "best_effect_fit": s["best_effect_fit"], "second_effect_fit": s["second_effect_fit"],
             "seconds": time.time() - t0}
