@@ -74,10 +74,9 @@ class Diagnosis:
         model) and over the top single (``delta_bic_over_top_single``: the pair needs the significance
         threshold there to be the verdict)."""
         rk = self.ranking
-        own = {f.name: f.n_params for f in rk.singles}
         return [{"effects": [p.base[0], p.name], "delta_bic": round(rk.nominal_bic - p.bic, 2),
                  "delta_bic_over_top_single": round(p.delta_bic, 2),
-                 "n_params": p.n_params + own.get(p.base[0], 0), "held_out_rms_m": p.held_out_rms_m,
+                 "n_params": p.n_params + p.base_n_params, "held_out_rms_m": p.held_out_rms_m,
                  "residual_rms_m": _total(p.residual_rms_m)} for p in rk.pairs[:limit]]
 
     def tie(self) -> dict | None:

@@ -153,6 +153,9 @@ class EffectFit:
     #: coefficient covariance over to the effect's parameters (empty: not carried)
     gain_coefficient_cov: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 8)))
     local_coefficients_cov: np.ndarray = field(repr=False, default_factory=lambda: np.full((8, 8), np.nan))
+    #: A pair's base effects in the forms it was fitted on, and their parameter count (empty, 0: a single)
+    base_effects: tuple[Effect | None, ...] = field(repr=False, default=())
+    base_n_params: int = 0
 
     def summary(self) -> dict:
         return {"name": self.name, "delta_bic": round(self.delta_bic, 2), "bic": round(self.bic, 2),
@@ -265,9 +268,26 @@ def _companions(a: Effect | None, b: Effect | None) -> bool:
     return a is not None and b is not None and (b.name in a.companions() or a.name in b.companions())
 
 
-def _base_effect(singles: list["EffectFit"], pair: "EffectFit") -> Effect | None:
-    """The effect (its fitted form) of ``pair``'s base among the ``singles``."""
-    return next((f.effect for f in singles if f.name == pair.base[0]), None)
+def _base_single(pool: list["EffectFit"], pair: "EffectFit") -> "EffectFit":
+    """The single fit in ``pool`` that ``pair`` was fitted on: its base's name, in the form it was fitted on."""
+    form = pair.base_effects[0] if pair.base_effects else None
+    return next(f for f in pool if f.name == pair.base[0] and (form is None or f.effect == form))
+
+
+def simpler_forms(singles: list["EffectFit"], kept: dict[str, "EffectFit"]) -> list["EffectFit"]:
+    """For each effect, its best form with fewer parameters than the form that stands for it (none if none).
+
+    A richer form's extra terms can take up what a signal transform does to the rest of the model: a channel
+    delay turns the known unbalance's forward 1X response into a 1X the backward-1X form of misalignment
+    absorbs, so that form won the single race by 2 700 in BIC over the 2X form on a record of 2X forces seen
+    through skewed probes, and the skew fitted on it landed 30 us off; the pair with the 2X form was 37 ahead.
+    A transform's pair is therefore fitted on these forms too."""
+    out = []
+    for name, k in kept.items():
+        fewer = [f for f in singles if f.name == name and f.n_params < k.n_params]
+        if fewer:
+            out.append(min(fewer, key=lambda f: f.bic))
+    return out
 
 
 def misfit(fit: "EffectFit") -> float:
@@ -402,7 +422,8 @@ def fit_effect(ctx: FitContext, effect: Effect, base: tuple[EffectFit, ...] = ()
     eff_cols = cols
     if effect.nl_names and cols.shape[2] == 0:
         eff_cols = np.zeros((n, 4, 0))
-    return EffectFit(name=effect.name, base=tuple(b.name for b in base), nl=nl, nl_std=nl_std, lin=lin,
+    return EffectFit(name=effect.name, base=tuple(b.name for b in base), base_effects=tuple(b.effect for b in base),
+                     base_n_params=sum(b.n_params for b in base), nl=nl, nl_std=nl_std, lin=lin,
                      lin_std=lin_std, physical=physical, physical_std=physical_std, n_params=k_eff,
                      rss_m2=rss, n_obs=sol.n_obs, bic=b_val, delta_bic=ref - b_val,
                      held_out_rms_m=held_out_rms(ctx, all_off, all_cols, hold_coefficients=hold_coefficients),
@@ -1180,6 +1201,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     kept: dict[str, EffectFit] = {}
     for f in singles:
         kept.setdefault(f.name, f)
+    simpler = simpler_forms(singles, kept)
     singles = list(kept.values())
     by_name.update({f.name: f.effect for f in singles if f.effect is not None})
     # 3. a fair nominal reference
@@ -1191,6 +1213,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             ref = min(ref, b)
     if ref < bic0:
         singles = [_with_reference(f, ref) for f in singles]
+        simpler = [_with_reference(f, ref) for f in simpler]
     singles.sort(key=lambda f: -f.delta_bic)
     # a gap: the two leaders continued to convergence (FINAL_NFEV), so the closer race is not decided by
     # which of them stopped nearer its optimum
@@ -1217,6 +1240,15 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                                             extra_grid=tuple(e.refine_starts(actx)), n_starts=PAIR_STARTS))
                 except (ValueError, np.linalg.LinAlgError):
                     continue
+        # a signal transform also on each base's simpler form (:func:`simpler_forms`)
+        for a in (s for s in simpler if s.name in {b.name for b in bases}):
+            for e in (by_name[x.name] for x in library if by_name[x.name].transforms_signal and x.name != a.name):
+                try:
+                    pairs.append(fit_effect(a.ctx or ctx, e, (a,), reference_bic=top.bic,
+                                            extra_grid=tuple(e.refine_starts(a.ctx or ctx)), n_starts=PAIR_STARTS))
+                except (ValueError, np.linalg.LinAlgError):
+                    continue
+        pool = singles + simpler
         pairs.sort(key=lambda f: f.bic)
         # refit jointly with the coefficients: the best pairs, and every pair on the top single whose second
         # effect the first pass cannot judge (``pair_always_refitted``)
@@ -1224,7 +1256,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         # and every structural effect on a force it carries (its first pass linearizes about the coefficients
         # the force's single fit dragged to absorb the structure's own response)
         to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].pair_always_refitted and (
-            p.base == (top.name,) or _carries_base(by_name[p.name], tuple(f for f in singles if f.name == p.base[0])))}
+            p.base == (top.name,) or _carries_base(by_name[p.name], (_base_single(pool, p),)))}
         # and every signal transform (a channel delay) on any base: its first pass delays the base's model
         # about the coefficients the base's single fit dragged to absorb the delay too (misalignment with a
         # 100 us skew ranked 11th in its first pass and was called runout)
@@ -1232,10 +1264,10 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         # and every pair of an effect's form with the effect that carries what the form leaves out (its companion):
         # the form's single fit dragged the coefficients to absorb that part (a coupling's forward 1X), so the
         # pair's first pass, linearized there, cannot show it
-        to_refine |= {i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_effect(singles, p))}
+        to_refine |= {i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_single(pool, p).effect)}
         for i in sorted(to_refine):
             p = pairs[i]
-            a = next(f for f in singles if f.name == p.base[0])
+            a = _base_single(pool, p)
             actx = a.ctx or ctx
             nl_starts = tuple(by_name[p.name].refine_starts(actx))
             eff = by_name[p.name]
@@ -1253,7 +1285,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         pairs.sort(key=lambda f: f.bic)
         # the leading pairs continued to convergence like the top single they must beat (FINAL_NFEV)
         for i, p in enumerate(pairs[:PAIR_REFINE]):
-            a = next(f for f in singles if f.name == p.base[0])
+            a = _base_single(pool, p)
             pairs[i] = refine(a.ctx or ctx, by_name[p.name], p, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV,
                               polish_nfev=0)
         pairs.sort(key=lambda f: f.bic)
@@ -1263,7 +1295,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                      and predicts_held_out(p.held_out_rms_m, top.held_out_rms_m)
                      and p.net_fraction >= MIN_PAIR_NET_FRACTION), None)
         if cand is not None:
-            a_fit = next(f for f in singles if f.name == cand.base[0])
+            a_fit = _base_single(pool, cand)
             say("verdict: the selected pair continued to convergence")
             cand = refine(a_fit.ctx or ctx, by_name[cand.name], cand, (a_fit,), reference_bic=top.bic,
                           max_nfev=VERDICT_NFEV, polish_nfev=0)
@@ -1273,8 +1305,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             rank = {f.name: i for i, f in enumerate(singles)}
             a_name, b_name = cand.base[0], cand.name
             first, other = (a_name, b_name) if rank[a_name] <= rank[b_name] else (b_name, a_name)
-            joint = {n: _joint_parameters(next(f for f in singles if f.name == n), cand, by_name[n])
-                     for n in (first, other)}
+            joint = {n: _joint_parameters(f, cand, f.effect or by_name[n])
+                     for n, f in ((a_name, a_fit), (b_name, next(f for f in singles if f.name == b_name)))}
             best, o = joint[first], joint[other]
             second = replace(cand, name=other, base=(first,), delta_bic=best.bic - cand.bic, nl=o.nl,
                              nl_std=o.nl_std, lin=o.lin, lin_std=o.lin_std, physical=o.physical,

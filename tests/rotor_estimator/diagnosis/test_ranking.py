@@ -634,3 +634,20 @@ def test_the_ranking_runs_with_blas_on_one_thread(monkeypatch):
     assert seen and seen[0] and all(n == 1 for n in seen[0])
     if any(n > 1 for n in outside):  # the check can fail only where BLAS runs more than one thread outside
         assert seen[0] != outside
+
+
+def test_simpler_forms_are_the_best_form_with_fewer_parameters_than_the_kept_one():
+    """Each effect's best (lowest-BIC) form with fewer parameters than the form that stands for it, and none
+    for an effect whose kept form is already its smallest (a transform's pair is also fitted on these)."""
+    from rotor_estimator.diagnosis.ranking import simpler_forms
+
+    def fit(name, n, b):
+        return SimpleNamespace(name=name, n_params=n, bic=b)
+
+    rich, plain = fit("misalignment", 12, -100.0), fit("misalignment", 8, -50.0)
+    plain_worse = fit("misalignment", 8, -40.0)
+    same_size = fit("pedestal", 7, -90.0), fit("pedestal", 7, -80.0)
+    smallest = fit("bearing_cubic", 2, -70.0), fit("bearing_cubic", 3, -60.0)
+    singles = [rich, plain, plain_worse, *same_size, *smallest]
+    kept = {"misalignment": rich, "pedestal": same_size[0], "bearing_cubic": smallest[0]}
+    assert simpler_forms(singles, kept) == [plain]
