@@ -121,6 +121,7 @@ def test_control_is_clean_and_budget_is_noise(rig_file):
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # test_each_effect_recovers_its_own_parameters recovers misalignment in the default run
 def test_misalignment_gap_lies_in_2x_and_ranking_is_stable_across_seeds(rig_file):
     rig = rig_file.rig
     effects = HiddenEffects(misalignment_n=(6.0, -3.0, 2.0, 5.0))

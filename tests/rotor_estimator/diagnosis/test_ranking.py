@@ -70,6 +70,7 @@ def test_unstable_start_moves_to_the_nearest_stable_point_towards_the_nominal_fi
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # the 250 N case below checks the same pair at near-limit skew
 @pytest.mark.parametrize("seed", [31])
 def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
     """Two hidden effects (a 2X force and a 60-90 us channel skew): both are the top two, not runout.
@@ -104,6 +105,7 @@ def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # the foundation tests of test_independent_forms find pedestals past a dragged nominal too
 def test_soft_pedestal_that_drags_the_nominal_fit_off_is_found_with_its_frequency():
     """A 60 Hz pedestal (below the running speed) drags the nominal fit into a basin with a negative kxx,
     about which the pedestal's first pass finds nothing; its joint refit from the prior must still reach
