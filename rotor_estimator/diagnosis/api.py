@@ -72,12 +72,16 @@ class Diagnosis:
     def ranking_pairs(self, limit: int = 5) -> list[dict]:
         """The best ``limit`` pairs, their evidence on the singles' scale (``delta_bic`` against the nominal
         model) and over the top single (``delta_bic_over_top_single``: the pair needs the significance
-        threshold there to be the verdict)."""
+        threshold there to be the verdict). A pair fitted on two forms of its base is listed once, in its better
+        form (the ranking keeps both)."""
         rk = self.ranking
+        best_form = {}
+        for p in rk.pairs:  # sorted by BIC
+            best_form.setdefault((p.base[0], p.name), p)
         return [{"effects": [p.base[0], p.name], "delta_bic": round(rk.nominal_bic - p.bic, 2),
                  "delta_bic_over_top_single": round(p.delta_bic, 2),
                  "n_params": p.n_params + p.base_n_params, "held_out_rms_m": p.held_out_rms_m,
-                 "residual_rms_m": _total(p.residual_rms_m)} for p in rk.pairs[:limit]]
+                 "residual_rms_m": _total(p.residual_rms_m)} for p in list(best_form.values())[:limit]]
 
     def tie(self) -> dict | None:
         """``None`` when the data decide; else the tied effects, their evidence margin and the measurements

@@ -274,6 +274,17 @@ def _base_single(pool: list["EffectFit"], pair: "EffectFit") -> "EffectFit":
     return next(f for f in pool if f.name == pair.base[0] and (form is None or f.effect == form))
 
 
+def _pair_first_pass(ctx: FitContext, effect: Effect, base: "EffectFit", reference_bic: float) -> list["EffectFit"]:
+    """``effect`` fitted on the single ``base`` in its context, structural starts in the grid too (a base changes
+    what the effect must explain): one pair, or none when the fit is singular or out of its domain."""
+    actx = base.ctx or ctx
+    try:
+        return [fit_effect(actx, effect, (base,), reference_bic=reference_bic,
+                           extra_grid=tuple(effect.refine_starts(actx)), n_starts=PAIR_STARTS)]
+    except (ValueError, np.linalg.LinAlgError):
+        return []
+
+
 def simpler_forms(singles: list["EffectFit"], kept: dict[str, "EffectFit"]) -> list["EffectFit"]:
     """For each effect, its best form with fewer parameters than the form that stands for it (none if none).
 
@@ -1229,25 +1240,17 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         bases = [f for f in singles[:PAIR_BASES] if f.delta_bic >= threshold]
         seen = set()
         for a in bases:
-            actx = a.ctx or ctx
             for e in (by_name[x.name] for x in library):
                 key = frozenset((a.name, e.name))
                 if e.name == a.name or key in seen:
                     continue
                 seen.add(key)
-                try:  # structural starts in the grid too: a base changes what the effect must explain
-                    pairs.append(fit_effect(actx, e, (a,), reference_bic=top.bic,
-                                            extra_grid=tuple(e.refine_starts(actx)), n_starts=PAIR_STARTS))
-                except (ValueError, np.linalg.LinAlgError):
-                    continue
+                pairs.extend(_pair_first_pass(ctx, e, a, top.bic))
         # a signal transform also on each base's simpler form (:func:`simpler_forms`)
-        for a in (s for s in simpler if s.name in {b.name for b in bases}):
+        base_names = {b.name for b in bases}
+        for a in (s for s in simpler if s.name in base_names):
             for e in (by_name[x.name] for x in library if by_name[x.name].transforms_signal and x.name != a.name):
-                try:
-                    pairs.append(fit_effect(a.ctx or ctx, e, (a,), reference_bic=top.bic,
-                                            extra_grid=tuple(e.refine_starts(a.ctx or ctx)), n_starts=PAIR_STARTS))
-                except (ValueError, np.linalg.LinAlgError):
-                    continue
+                pairs.extend(_pair_first_pass(ctx, e, a, top.bic))
         pool = singles + simpler
         pairs.sort(key=lambda f: f.bic)
         # refit jointly with the coefficients: the best pairs, and every pair on the top single whose second

@@ -331,3 +331,23 @@ def test_a_verdict_that_pays_its_parameters_only_through_the_prior_is_flagged():
     below = rss0 * np.exp(-(price - 1.0) / n)
     assert len(prior_driven_warnings(rss0, below, n, 4, ["a", "b"])) == 1
     assert prior_driven_warnings(0.0, rss0, n, 4, ["a"]) == [] and prior_driven_warnings(rss0, rss0, 0, 4, ["a"]) == []
+
+
+def test_ranking_pairs_lists_a_pair_fitted_on_two_base_forms_once_in_its_better_form():
+    """A transform's pair is fitted on two forms of a base (:func:`simpler_forms`); the table shows one row per
+    pair of effects, the one with the smaller BIC, and keeps the BIC order."""
+    from types import SimpleNamespace
+
+    from rotor_estimator.diagnosis.api import Diagnosis
+
+    def pair(base, name, bic, n_base):
+        return SimpleNamespace(base=(base,), name=name, bic=bic, delta_bic=-bic, n_params=1, base_n_params=n_base,
+                               held_out_rms_m=1e-6, residual_rms_m=np.ones(4) * 1e-6)
+
+    pairs = [pair("misalignment", "timing_skew", -500.0, 4), pair("misalignment", "timing_skew", -463.0, 8),
+             pair("misalignment", "pedestal", -400.0, 8)]
+    d = Diagnosis(ctx=None, ranking=SimpleNamespace(nominal_bic=0.0, pairs=pairs), where={}, innovations={},
+                  nominal_prediction_m=np.zeros(0), table=[], data={})
+    rows = d.ranking_pairs(5)
+    assert [r["effects"] for r in rows] == [["misalignment", "timing_skew"], ["misalignment", "pedestal"]]
+    assert rows[0]["n_params"] == 5 and rows[0]["delta_bic"] == 500.0
