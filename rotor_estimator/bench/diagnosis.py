@@ -78,19 +78,25 @@ def diagnose_case(case_dir: str) -> dict:
         s = diagnose(load_recording(d / "recording.npz"), rig_file.rig, rig_file.estimator).summary()
     except Exception as exc:  # a failed case is scored as a miss, not a crash of the benchmark
         return {"case": d.name, "error": repr(exc), "seconds": time.time() - t0}
-    return {"case": d.name, "best_effect": s["best_effect"], "second_effect": s["second_effect"],
+    return result_of_summary(d.name, s, time.time() - t0)
+
+
+def result_of_summary(case: str, s: dict, seconds: float) -> dict:
+    """What a case keeps of a diagnosis summary (:meth:`.Diagnosis.summary`, as the CLI's ``--json`` prints it):
+    the verdict and what :func:`score` reads, and the whole ranking of singles and the best pairs with their
+    parameter counts and the tie's margins, so that a decision rule can be re-scored offline without diagnosing
+    again."""
+    return {"case": case, "best_effect": s["best_effect"], "second_effect": s["second_effect"],
             "verdict_set": s["verdict_set"], "tie": s["tie"] is not None,
             "coefficients": list(s["coefficients_verdict"].values()),
             "coefficients_std": list(s["coefficients_verdict_std"].values()),
             "top_two": s["top_two"], "before": s["residual_rms_before"], "after": s["residual_rms_after"],
             "shrink_ratio": s["shrink_ratio"],
-            # the whole ranking of singles and the best pairs, with their parameter counts and the tie's margins,
-            # so that a decision rule can be re-scored offline without diagnosing again
             "ranking": [(r["effect"], r["delta_bic"], r["n_params"]) for r in s["ranking"]],
             "ranking_pairs": s["ranking_pairs"], "tie_detail": s["tie"],
             # the verdict's effect parameters with their reported std (scored by :func:`_parameter_coverage`)
             "best_effect_fit": s["best_effect_fit"], "second_effect_fit": s["second_effect_fit"],
-            "seconds": time.time() - t0}
+            "seconds": seconds}
 
 
 def score(results: list[dict], labels: dict, rigs: dict | None = None) -> dict:

@@ -151,3 +151,25 @@ def test_two_sets_are_pooled_with_their_cases_kept_apart(tmp_path):
     assert (s["cases"], s["cases_in_set"], s["top1"]) == (2, 4, 0.5)
     assert sorted(r["case"] for r in s["rows"]) == ["seed_a/case_000", "seed_b/case_000"]
     assert "PARTIAL: 2 of the set's 4 cases" in format_score(s)
+
+
+def test_a_case_whose_diagnosis_raises_is_kept_as_an_error_and_scored_as_a_miss(tmp_path, monkeypatch):
+    """One failing case must not stop a benchmark of hours: ``diagnose_case`` keeps the error, and ``score``
+    counts it as a miss (verdict "error")."""
+    from types import SimpleNamespace
+
+    import rotor_estimator.bench.diagnosis as bench
+    import rotor_estimator.core.config as config
+    import rotor_estimator.diagnosis.api as api
+
+    def failing(*_args, **_kwargs):
+        raise FloatingPointError("diverged")
+
+    monkeypatch.setattr(config, "load_rig_file", lambda _p: SimpleNamespace(rig=None, estimator=None))
+    monkeypatch.setattr(bench, "load_recording", lambda _p: None)
+    monkeypatch.setattr(api, "diagnose", failing)
+    (tmp_path / "case_007").mkdir()
+    r = bench.diagnose_case(str(tmp_path / "case_007"))
+    assert r["case"] == "case_007" and "FloatingPointError('diverged')" == r["error"]
+    s = score([r], {"case_007": _label(["pedestal"])})
+    assert s["top1"] == 0.0 and s["rows"][0]["verdict"] == "error"

@@ -179,6 +179,17 @@ def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
     for r in s["ranking_pairs"]:
         assert r["delta_bic"] == pytest.approx(s["ranking"][0]["delta_bic"] + r["delta_bic_over_top_single"], abs=0.05)
     assert "Best pairs" in (tmp_path / "rep" / "report.md").read_text()
+    # the benchmark keeps what it scores from this very summary: a runout label scores a top-1 hit, the 8
+    # coefficients against the rig's truth, and the ranking with its parameter counts for offline re-scoring
+    from rotor_estimator.bench.diagnosis import result_of_summary, score
+
+    kept = json.loads(json.dumps(result_of_summary("c", s, 1.0)))  # as written to results/<case>.json
+    label = {"effects": ["probe_runout"], "generator": "effect_sim", "noise_rms_m": 1e-6,
+             "true_coefficients": rig.true_coefficients.as_array().tolist()}
+    sc = score([kept], {"c": label})
+    assert sc["top1"] == 1.0 and sc["n_coefficients_scored"] == 8
+    assert [tuple(r) for r in kept["ranking"]] == [(r["effect"], r["delta_bic"], r["n_params"]) for r in s["ranking"]]
+    assert kept["ranking_pairs"] == s["ranking_pairs"]
 
 
 def test_core_diagnosis_imports_no_ros():
