@@ -1094,6 +1094,9 @@ class Ranking:
     #: Singles whose evidence is within :data:`TIE_MARGIN_BIC` of a single-effect verdict (the verdict is then
     #: the set ``best`` + these; empty when the data decide)
     tied: list[EffectFit] = field(default_factory=list)
+    #: The coefficients of the nominal model at ``nominal_bic``: a re-polish from an effect's refit can find a
+    #: better optimum of the nominal model than its own fit (``None``: the context's own, none was better)
+    nominal_coefficients: np.ndarray | None = None
 
 
 def nominal_at(ctx: FitContext, coefficients: np.ndarray, *, polish_nfev: int = 15) -> tuple[float, np.ndarray]:
@@ -1217,11 +1220,12 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     by_name.update({f.name: f.effect for f in singles if f.effect is not None})
     # 3. a fair nominal reference
     say("stage 3/4: nominal reference re-polished from every refit")
-    ref = bic0
+    ref, ref_coefficients = bic0, None
     for f in singles:
         if f.delta_bic > 0 and not np.allclose(f.coefficients, ctx.coefficients, rtol=1e-6):
-            b, _ = nominal_at(ctx, f.coefficients)
-            ref = min(ref, b)
+            b, c = nominal_at(ctx, f.coefficients)
+            if b < ref and _stable(ctx, c):
+                ref, ref_coefficients = b, c
     if ref < bic0:
         singles = [_with_reference(f, ref) for f in singles]
         simpler = [_with_reference(f, ref) for f in simpler]
@@ -1337,4 +1341,4 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     elif best is not None:
         best = with_model_average(best, others)
     return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=singles,
-                   best=best, second=second, pairs=pairs, tied=tied)
+                   best=best, second=second, pairs=pairs, tied=tied, nominal_coefficients=ref_coefficients)
