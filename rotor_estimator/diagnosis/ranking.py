@@ -1236,6 +1236,9 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         if f.delta_bic >= threshold and f.name not in converged_forms:
             singles[i] = refine(ctx, by_name[f.name], f, reference_bic=ref, max_nfev=FINAL_NFEV, polish_nfev=0)
     singles.sort(key=lambda f: -f.delta_bic)
+    if not singles:  # no effect given, or none could be fitted here: the nominal model stands
+        return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=[],
+                       best=None, second=None, pairs=[], nominal_coefficients=ref_coefficients)
     top = singles[0]
     best = top if (top.delta_bic >= threshold and predicts_held_out(top.held_out_rms_m, ho0)) else None
     second, pairs = None, []

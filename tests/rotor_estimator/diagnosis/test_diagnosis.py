@@ -389,3 +389,13 @@ def test_the_reported_nominal_is_the_better_optimum_a_re_polish_found(rig_file, 
     assert s["residual_rms_before"] <= first["residual_rms_before"] * (1 + 1e-3)
     assert list(s["coefficients_verdict"].values()) == list(s["coefficients_nominal"].values())
 
+
+def test_a_diagnosis_with_no_effect_to_rank_reports_the_nominal_model(rig_file):
+    """An empty library (or one whose every effect fails to fit) is no crash: the verdict is none, with the
+    nominal model's coefficients and residual."""
+    import rotor_estimator.diagnosis.api as api
+
+    rig = rig_file.rig
+    sim = simulate_with_effects(rig, _scenario(rig, duration_s=0.15), HiddenEffects(), seed=11)
+    s = api.diagnose(sim.recording, rig, rig_file.estimator, library=()).summary()
+    assert s["best_effect"] == "none" and s["ranking"] == [] and s["residual_rms_after"] == s["residual_rms_before"]
