@@ -374,6 +374,7 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
         # contact's record, its coefficients reported 2e9 stds off)
         ctx = recentered(ctx, rk.nominal_coefficients)
         sol0, _, ho0 = nominal_solution(ctx)
+        rk = replace(rk, nominal_rss_m2=sol0.rss_m2, nominal_held_out_rms_m=ho0)  # what the report compares with
     where = budget(ctx.t_s[ctx.mask], (ctx.y_m - sol0.prediction_m)[ctx.mask], ctx.shaft.angle_rad[ctx.mask],
                    ctx.shaft.speed_rad_s[ctx.mask], ctx.impact_force_n[ctx.mask], ctx.noise_std_m)
     innov = innovation_consistency(ctx.ekf_nis, ctx.ekf_innovation_m, ctx.ekf_innovation_std_m)

@@ -388,6 +388,7 @@ def test_the_reported_nominal_is_the_better_optimum_a_re_polish_found(rig_file, 
     np.testing.assert_allclose(list(s["coefficients_nominal"].values()), truth)
     assert s["residual_rms_before"] <= first["residual_rms_before"] * (1 + 1e-3)
     assert list(s["coefficients_verdict"].values()) == list(s["coefficients_nominal"].values())
+    assert s["decision_rule"]["nominal_held_out_rms_m"] == s["table"][0]["held_out_rms_m"]  # one nominal throughout
 
 
 def test_a_diagnosis_with_no_effect_to_rank_reports_the_nominal_model(rig_file):
