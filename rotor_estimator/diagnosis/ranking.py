@@ -1011,20 +1011,22 @@ def _physical_std(effect: Effect, nl, nl_std, lin, lin_cov, draws: int = 200) ->
     rng = np.random.default_rng(0)
     centre = effect.physical(nl, lin)
     samples = []
-    for _ in range(draws):
-        nl_d = nl + rng.standard_normal(nl.shape) * nl_std
-        try:
-            lin_d = rng.multivariate_normal(lin, lin_cov) if lin.size else lin
-        except (ValueError, np.linalg.LinAlgError):
-            lin_d = lin
-        samples.append(effect.physical(nl_d, lin_d))
+    with np.errstate(over="ignore", invalid="ignore"):  # a log-scaled parameter with a huge std: its draws overflow
+        for _ in range(draws):
+            nl_d = nl + rng.standard_normal(nl.shape) * nl_std
+            try:
+                lin_d = rng.multivariate_normal(lin, lin_cov) if lin.size else lin
+            except (ValueError, np.linalg.LinAlgError):
+                lin_d = lin
+            samples.append(effect.physical(nl_d, lin_d))
     keys = samples[0].keys() if samples else ()
     out = {}
     for k in keys:
         v = np.array([s.get(k, np.nan) for s in samples], dtype=float)
         if k.endswith("_deg") and np.isfinite(centre.get(k, np.nan)):
             v = (v - centre[k] + 180.0) % 360.0 - 180.0
-        out[k] = float(np.nanstd(v))
+        # a draw beyond float range (10 ** a log parameter drawn far out): the parameter is not bounded by the data
+        out[k] = float("inf") if np.any(np.isinf(v)) else float(np.nanstd(v))
     return out
 
 

@@ -653,3 +653,23 @@ def test_simpler_forms_are_the_best_form_with_fewer_parameters_than_the_kept_one
     singles = [rich, plain, plain_worse, *same_size, *smallest]
     kept = {"misalignment": rich, "pedestal": same_size[0], "bearing_cubic": smallest[0]}
     assert simpler_forms(singles, kept) == [plain]
+
+
+def test_physical_std_of_an_unbounded_log_parameter_is_infinite_without_overflow_warnings():
+    """A pedestal fit whose log10 frequency has a std of 400 decades: its draws of 10 ** x overflow. The
+    parameter is unbounded by the data, so its std is reported infinite (the report and the benchmark's
+    coverage read a non-finite std as none), with no overflow warning; a bounded one stays finite."""
+    import warnings
+
+    from rotor_estimator.diagnosis.effects.pedestal import PedestalFlexibility
+    from rotor_estimator.diagnosis.ranking import _physical_std
+
+    nl = np.array([2.0, -1.0, 1.0])  # 100 Hz, damping ratio 0.1, 10 kg
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        wide = _physical_std(PedestalFlexibility(), nl, np.array([400.0, 0.01, 0.01]), np.zeros(0), np.zeros((0, 0)))
+        narrow = _physical_std(PedestalFlexibility(), nl, np.array([0.001, 0.01, 0.01]), np.zeros(0), np.zeros((0, 0)))
+    assert wide["pedestal_frequency_hz"] == np.inf
+    assert np.isfinite(narrow["pedestal_frequency_hz"])
+    # 0.001 decade of 100 Hz: ln(10) * 0.001 * 100 Hz = 0.23 Hz, within the 200 draws' sampling error
+    assert narrow["pedestal_frequency_hz"] == pytest.approx(np.log(10) * 0.001 * 100.0, rel=0.15)
