@@ -1238,9 +1238,10 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         if f.delta_bic >= threshold and f.name not in converged_forms:
             singles[i] = refine(ctx, by_name[f.name], f, reference_bic=ref, max_nfev=FINAL_NFEV, polish_nfev=0)
     singles.sort(key=lambda f: -f.delta_bic)
+    nominal = dict(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2,
+                   nominal_coefficients=ref_coefficients)  # the reference every effect was measured against
     if not singles:  # no effect given, or none could be fitted here: the nominal model stands
-        return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=[],
-                       best=None, second=None, pairs=[], nominal_coefficients=ref_coefficients)
+        return Ranking(**nominal, singles=[], best=None, second=None, pairs=[])
     top = singles[0]
     best = top if (top.delta_bic >= threshold and predicts_held_out(top.held_out_rms_m, ho0)) else None
     second, pairs = None, []
@@ -1345,5 +1346,4 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         second = with_model_average(second, others)
     elif best is not None:
         best = with_model_average(best, others)
-    return Ranking(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2, singles=singles,
-                   best=best, second=second, pairs=pairs, tied=tied, nominal_coefficients=ref_coefficients)
+    return Ranking(**nominal, singles=singles, best=best, second=second, pairs=pairs, tied=tied)

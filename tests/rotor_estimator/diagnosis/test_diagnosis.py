@@ -33,6 +33,13 @@ def _scenario(rig, noise=1e-6, duration_s=0.22):
                           noise_std_m=noise, coefficients=rig.true_coefficients.as_array())
 
 
+@pytest.fixture(scope="module")
+def short_control(rig_file):
+    """A 0.15 s control record (no hidden effect, two impacts) of the rig file's rig."""
+    rig = rig_file.rig
+    return simulate_with_effects(rig, _scenario(rig, duration_s=0.15), HiddenEffects(), seed=11)
+
+
 def _fit(rig_file, name, effects, seed=3, refine_fit=False):
     rig = rig_file.rig
     sim = simulate_with_effects(rig, _scenario(rig), effects, seed=seed)
@@ -364,7 +371,7 @@ def test_ranking_pairs_lists_a_pair_fitted_on_two_base_forms_once_in_its_better_
     assert rows[0]["n_params"] == 5 and rows[0]["delta_bic"] == 500.0
 
 
-def test_the_reported_nominal_is_the_better_optimum_a_re_polish_found(rig_file, monkeypatch):
+def test_the_reported_nominal_is_the_better_optimum_a_re_polish_found(rig_file, short_control, monkeypatch):
     """When the ranking's re-polish from an effect's refit finds a better optimum of the nominal model than its own
     fit (``Ranking.nominal_coefficients``), the diagnosis reports that nominal: its coefficients, and a residual
     no larger than the first fit's (the evidence of every effect is measured against it, so the two must agree).
@@ -375,7 +382,7 @@ def test_the_reported_nominal_is_the_better_optimum_a_re_polish_found(rig_file, 
 
     rig = rig_file.rig
     truth = rig.true_coefficients.as_array()
-    sim = simulate_with_effects(rig, _scenario(rig, duration_s=0.15), HiddenEffects(), seed=11)
+    sim = short_control
     real_rank = api.rank_effects
 
     def with_better_nominal(ctx, library, **kw):
@@ -391,12 +398,10 @@ def test_the_reported_nominal_is_the_better_optimum_a_re_polish_found(rig_file, 
     assert s["decision_rule"]["nominal_held_out_rms_m"] == s["table"][0]["held_out_rms_m"]  # one nominal throughout
 
 
-def test_a_diagnosis_with_no_effect_to_rank_reports_the_nominal_model(rig_file):
+def test_a_diagnosis_with_no_effect_to_rank_reports_the_nominal_model(rig_file, short_control):
     """An empty library (or one whose every effect fails to fit) is no crash: the verdict is none, with the
     nominal model's coefficients and residual."""
     import rotor_estimator.diagnosis.api as api
 
-    rig = rig_file.rig
-    sim = simulate_with_effects(rig, _scenario(rig, duration_s=0.15), HiddenEffects(), seed=11)
-    s = api.diagnose(sim.recording, rig, rig_file.estimator, library=()).summary()
+    s = api.diagnose(short_control.recording, rig_file.rig, rig_file.estimator, library=()).summary()
     assert s["best_effect"] == "none" and s["ranking"] == [] and s["residual_rms_after"] == s["residual_rms_before"]
