@@ -382,16 +382,15 @@ def test_the_reported_nominal_is_the_better_optimum_a_re_polish_found(rig_file, 
 
     rig = rig_file.rig
     truth = rig.true_coefficients.as_array()
-    sim = short_control
     real_rank = api.rank_effects
 
     def with_better_nominal(ctx, library, **kw):
         return replace(real_rank(ctx, library, **kw), nominal_coefficients=truth)
 
     library = (effect_by_name("hammer_force_scale"),)
-    first = api.diagnose(sim.recording, rig, rig_file.estimator, library=library).summary()
+    first = api.diagnose(short_control.recording, rig, rig_file.estimator, library=library).summary()
     monkeypatch.setattr(api, "rank_effects", with_better_nominal)
-    s = api.diagnose(sim.recording, rig, rig_file.estimator, library=library).summary()
+    s = api.diagnose(short_control.recording, rig, rig_file.estimator, library=library).summary()
     np.testing.assert_allclose(list(s["coefficients_nominal"].values()), truth)
     assert s["residual_rms_before"] <= first["residual_rms_before"] * (1 + 1e-3)
     assert list(s["coefficients_verdict"].values()) == list(s["coefficients_nominal"].values())
