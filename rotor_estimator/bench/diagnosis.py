@@ -74,11 +74,39 @@ def diagnose_case(case_dir: str) -> dict:
     d = Path(case_dir)
     rig_file = load_rig_file(d / "rig.yaml")
     t0 = time.time()
+    events: list[tuple[float, str]] = [(0.0, "reading the record")]
+    progress = lambda line: events.append((time.time() - t0, line))  # noqa: E731
     try:
-        s = diagnose(load_recording(d / "recording.npz"), rig_file.rig, rig_file.estimator).summary()
+        s = diagnose(load_recording(d / "recording.npz"), rig_file.rig, rig_file.estimator,
+                     progress=progress).summary()
     except Exception as exc:  # a failed case is scored as a miss, not a crash of the benchmark
         return {"case": d.name, "error": repr(exc), "seconds": time.time() - t0}
-    return result_of_summary(d.name, s, time.time() - t0)
+    seconds = time.time() - t0
+    return {**result_of_summary(d.name, s, seconds), "stage_seconds": stage_seconds(events, seconds)}
+
+
+def stage_seconds(events: list[tuple[float, str]], end_s: float) -> dict[str, float]:
+    """Seconds spent in each stage of a diagnosis from its progress lines ``(elapsed s, line)``: a stage runs
+    from its line to the next one (the last to ``end_s``); a stage is named by its line up to the first colon
+    ("stage 2/4", "coefficient uncertainty"), and a stage entered twice adds up."""
+    out: dict[str, float] = {}
+    for (t, line), t_next in zip(events, [*(e[0] for e in events[1:]), end_s]):
+        name = line.split(":", 1)[0].strip()
+        out[name] = out.get(name, 0.0) + max(float(t_next) - float(t), 0.0)
+    return out
+
+
+def time_by_stage(results: list[dict]) -> dict[str, float]:
+    """Each stage's share of the summed wall time of the cases that report stage times (:func:`stage_seconds`),
+    largest first: where a speed-up must come from."""
+    totals: dict[str, float] = {}
+    for r in results:
+        for name, sec in (r.get("stage_seconds") or {}).items():
+            totals[name] = totals.get(name, 0.0) + float(sec)
+    whole = sum(totals.values())
+    if whole <= 0.0:
+        return {}
+    return dict(sorted(((k, v / whole) for k, v in totals.items()), key=lambda kv: -kv[1]))
 
 
 def result_of_summary(case: str, s: dict, seconds: float) -> dict:
@@ -177,6 +205,7 @@ def score(results: list[dict], labels: dict, rigs: dict | None = None) -> dict:
                                     else float("nan")),
             "mean_seconds_per_case": float(arr("seconds").mean()),
             "median_seconds_per_case": float(np.median(arr("seconds"))),
+            "time_share_by_stage": time_by_stage(results),
             "rows": rows, "confusion": _confusion(rows)}
 
 
@@ -320,6 +349,9 @@ def _format_one(s: dict) -> str:
             f"{100 * s['shrink_within_20pct']:.1f} % of detected cases",
             f"time per case            median {s['median_seconds_per_case']:.1f} s, "
             f"mean {s['mean_seconds_per_case']:.1f} s (wall clock of each case's diagnosis, as run: see --jobs)"]
+    if s.get("time_share_by_stage"):
+        out.append("time by stage            " + ", ".join(f"{name} {100 * share:.0f} %" for name, share
+                                                            in s["time_share_by_stage"].items()))
     return "\n".join(out)
 
 
