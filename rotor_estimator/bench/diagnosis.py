@@ -88,10 +88,13 @@ def diagnose_case(case_dir: str) -> dict:
 def stage_seconds(events: list[tuple[float, str]], end_s: float) -> dict[str, float]:
     """Seconds spent in each stage of a diagnosis from its progress lines ``(elapsed s, line)``: a stage runs
     from its line to the next one (the last to ``end_s``); a stage is named by its line up to the first colon
-    ("stage 2/4", "coefficient uncertainty"), and a stage entered twice adds up."""
+    ("coefficient uncertainty"), a numbered stage by its line up to any parenthesis ("stage 2/4 joint refits
+    with the bearing coefficients"), and a stage entered twice adds up."""
     out: dict[str, float] = {}
     for (t, line), t_next in zip(events, [*(e[0] for e in events[1:]), end_s]):
-        name = line.split(":", 1)[0].strip()
+        head = line.split("(", 1)[0]
+        numbered = head.startswith("stage ")
+        name = " ".join(head.replace(":", "", 1).split()) if numbered else head.split(":", 1)[0].strip()
         out[name] = out.get(name, 0.0) + max(float(t_next) - float(t), 0.0)
     return out
 

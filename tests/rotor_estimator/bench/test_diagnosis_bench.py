@@ -185,14 +185,16 @@ def test_a_case_whose_diagnosis_raises_is_kept_as_an_error_and_scored_as_a_miss(
 
 def test_stage_times_split_a_cases_wall_time_and_a_repeated_stage_adds_up():
     """:func:`stage_seconds`: each stage runs from its progress line to the next (the last to the end), so the
-    stages sum to the case's wall time; a stage is named by its line up to the colon and a repeated one adds up."""
+    stages sum to the case's wall time; a stage is named by its line up to the colon (a numbered stage up to
+    its parenthesis, whose leader changes between runs) and a repeated one adds up."""
     from rotor_estimator.bench.diagnosis import stage_seconds
 
     events = [(0.0, "reading the record"), (2.0, "nominal fit: EKF (2 passes)"), (10.0, "stage 1/4: 10 singles"),
-              (15.0, "stage 2/4: joint refits (leader x)"), (40.0, "stage 1/4: 10 singles"), (45.0, "verdict: y")]
+              (15.0, "stage 2/4: joint refits (leader x, delta BIC 5)"), (40.0, "stage 1/4: 10 singles"),
+              (45.0, "verdict: y")]
     out = stage_seconds(events, 50.0)
-    assert out == {"reading the record": 2.0, "nominal fit": 8.0, "stage 1/4": 10.0, "stage 2/4": 25.0,
-                   "verdict": 5.0}
+    assert out == {"reading the record": 2.0, "nominal fit": 8.0, "stage 1/4 10 singles": 10.0,
+                   "stage 2/4 joint refits": 25.0, "verdict": 5.0}
     assert sum(out.values()) == 50.0
 
 
@@ -215,7 +217,7 @@ def test_time_by_stage_is_each_stages_share_of_the_summed_time_largest_first(tmp
 
     def fake_diagnose(*_args, progress=None, **_kwargs):
         progress("nominal fit: EKF")
-        progress("stage 2/4: joint refits")
+        progress("stage 2/4: joint refits (leader x)")
         return SimpleNamespace(summary=lambda: summary)
 
     monkeypatch.setattr(config, "load_rig_file", lambda _p: SimpleNamespace(rig=None, estimator=None))
@@ -224,12 +226,13 @@ def test_time_by_stage_is_each_stages_share_of_the_summed_time_largest_first(tmp
     (tmp_path / "case_001").mkdir()
     r = bench.diagnose_case(str(tmp_path / "case_001"))
     assert r["seconds"] == 10.0
-    assert r["stage_seconds"] == {"reading the record": 1.0, "nominal fit": 3.0, "stage 2/4": 6.0}
+    assert r["stage_seconds"] == {"reading the record": 1.0, "nominal fit": 3.0, "stage 2/4 joint refits": 6.0}
 
-    other = {**r, "case": "case_002", "stage_seconds": {"stage 2/4": 10.0}}
+    other = {**r, "case": "case_002", "stage_seconds": {"stage 2/4 joint refits": 10.0}}
     old = {k: v for k, v in r.items() if k != "stage_seconds"} | {"case": "case_003"}  # before stage times
     s = score([r, other, old], {c: _label([]) for c in ("case_001", "case_002", "case_003")})
     shares = s["time_share_by_stage"]
-    assert list(shares) == ["stage 2/4", "nominal fit", "reading the record"]
-    assert abs(sum(shares.values()) - 1.0) < 1e-12 and abs(shares["stage 2/4"] - 0.8) < 1e-12
-    assert "time by stage            stage 2/4 80 %, nominal fit 15 %, reading the record 5 %" in format_score(s)
+    assert list(shares) == ["stage 2/4 joint refits", "nominal fit", "reading the record"]
+    assert abs(sum(shares.values()) - 1.0) < 1e-12 and abs(shares["stage 2/4 joint refits"] - 0.8) < 1e-12
+    assert "time by stage            stage 2/4 joint refits 80 %, nominal fit 15 %, reading the record 5 %" \
+        in format_score(s)
