@@ -209,7 +209,6 @@ def test_time_by_stage_is_each_stages_share_of_the_summed_time_largest_first(tmp
     import rotor_estimator.diagnosis.api as api
 
     clock = iter([100.0, 101.0, 104.0, 110.0, 110.0])  # t0, two progress lines, the end (and a spare)
-    monkeypatch.setattr(bench.time, "time", lambda: next(clock))
     summary = {"best_effect": "none", "second_effect": "none", "verdict_set": [], "tie": None,
                "coefficients_verdict": {}, "coefficients_verdict_std": {}, "top_two": ["none"],
                "residual_rms_before": 1e-6, "residual_rms_after": 1e-6, "shrink_ratio": 1.0, "ranking": [],
@@ -224,7 +223,7 @@ def test_time_by_stage_is_each_stages_share_of_the_summed_time_largest_first(tmp
     monkeypatch.setattr(bench, "load_recording", lambda _p: None)
     monkeypatch.setattr(api, "diagnose", fake_diagnose)
     (tmp_path / "case_001").mkdir()
-    r = bench.diagnose_case(str(tmp_path / "case_001"))
+    r = bench.diagnose_case(str(tmp_path / "case_001"), clock=lambda: next(clock))
     assert r["seconds"] == 10.0
     assert r["stage_seconds"] == {"reading the record": 1.0, "nominal fit": 3.0, "stage 2/4 joint refits": 6.0}
 
