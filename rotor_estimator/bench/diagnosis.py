@@ -70,6 +70,7 @@ def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic) ->
 
     from rotor_estimator.core.config import load_rig_file
     from rotor_estimator.diagnosis.api import diagnose
+    from rotor_estimator.diagnosis.ranking import REFIT_LEDGER
 
     warnings.simplefilter("ignore")
     d = Path(case_dir)
@@ -77,27 +78,67 @@ def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic) ->
     t0 = clock()
     events: list[tuple[float, str]] = [(0.0, "reading the record")]
     progress = lambda line: events.append((clock() - t0, line))  # noqa: E731
+    refits: list[dict] = []  # each joint refit, with the stage it ran in
+    ledger = REFIT_LEDGER.set(lambda entry: refits.append({**entry, "stage": stage_name(events[-1][1])}))
     try:
         s = diagnose(load_recording(d / "recording.npz"), rig_file.rig, rig_file.estimator,
                      progress=progress).summary()
     except Exception as exc:  # a failed case is scored as a miss, not a crash of the benchmark
         return {"case": d.name, "error": repr(exc), "seconds": clock() - t0}
+    finally:
+        REFIT_LEDGER.reset(ledger)
     seconds = clock() - t0
-    return {**result_of_summary(d.name, s, seconds), "stage_seconds": stage_seconds(events, seconds)}
+    return {**result_of_summary(d.name, s, seconds), "stage_seconds": stage_seconds(events, seconds),
+            "refits": refits}
+
+
+def stage_name(line: str) -> str:
+    """A diagnosis stage's name from its progress line: up to the first colon ("coefficient uncertainty"), a
+    numbered stage up to any parenthesis ("stage 2/4 joint refits with the bearing coefficients", whose
+    parenthesis names the leader, which changes between runs)."""
+    head = line.split("(", 1)[0]
+    if head.startswith("stage "):
+        return " ".join(head.replace(":", "", 1).split())
+    return head.split(":", 1)[0].strip()
 
 
 def stage_seconds(events: list[tuple[float, str]], end_s: float) -> dict[str, float]:
     """Seconds spent in each stage of a diagnosis from its progress lines ``(elapsed s, line)``: a stage runs
-    from its line to the next one (the last to ``end_s``); a stage is named by its line up to the first colon
-    ("coefficient uncertainty"), a numbered stage by its line up to any parenthesis ("stage 2/4 joint refits
-    with the bearing coefficients"), and a stage entered twice adds up."""
+    from its line to the next one (the last to ``end_s``), is named by :func:`stage_name`, and adds up when
+    entered twice."""
     out: dict[str, float] = {}
     for (t, line), t_next in zip(events, [*(e[0] for e in events[1:]), end_s]):
-        head = line.split("(", 1)[0]
-        numbered = head.startswith("stage ")
-        name = " ".join(head.replace(":", "", 1).split()) if numbered else head.split(":", 1)[0].strip()
+        name = stage_name(line)
         out[name] = out.get(name, 0.0) + max(float(t_next) - float(t), 0.0)
     return out
+
+
+#: A refit "lowered its model's BIC" when by at least this much (:func:`refit_yield`).
+REFIT_GAIN_BIC = 1.0
+
+
+def refit_yield(results: list[dict]) -> dict:
+    """The joint refits of the cases that report them (:func:`diagnose_case`): how many per case, their share of
+    the cases' summed wall time, and the share of refit time spent in refits that did not lower their model's
+    BIC by :data:`REFIT_GAIN_BIC`, over all and per stage (largest refit time first). Not a verdict on those
+    refits (a refit that finds nothing better is how the search knows): a map for making the search cheaper."""
+    cases = [r for r in results if r.get("refits") is not None]
+    if not cases:
+        return {}
+    refits = [f for r in cases for f in r["refits"]]
+    total = sum(f["seconds"] for f in refits)
+    wall = sum(float(r["seconds"]) for r in cases)
+    idle = lambda f: f["bic_before"] - f["bic_after"] < REFIT_GAIN_BIC  # noqa: E731
+    by_stage: dict[str, list[float]] = {}
+    for f in refits:
+        spent = by_stage.setdefault(f["stage"], [0.0, 0.0])
+        spent[0] += f["seconds"]
+        spent[1] += f["seconds"] if idle(f) else 0.0
+    return {"refits_per_case_median": float(np.median([len(r["refits"]) for r in cases])),
+            "refit_share_of_wall": total / wall if wall > 0 else 0.0,
+            "idle_share_of_refit_time": sum(f["seconds"] for f in refits if idle(f)) / total if total > 0 else 0.0,
+            "idle_share_by_stage": {k: (v[1] / v[0] if v[0] > 0 else 0.0) for k, v in
+                                    sorted(by_stage.items(), key=lambda kv: -kv[1][0])}}
 
 
 def time_by_stage(results: list[dict]) -> dict[str, float]:
@@ -209,7 +250,7 @@ def score(results: list[dict], labels: dict, rigs: dict | None = None) -> dict:
                                     else float("nan")),
             "mean_seconds_per_case": float(arr("seconds").mean()),
             "median_seconds_per_case": float(np.median(arr("seconds"))),
-            "time_share_by_stage": time_by_stage(results),
+            "time_share_by_stage": time_by_stage(results), "refit_yield": refit_yield(results),
             "rows": rows, "confusion": _confusion(rows)}
 
 
@@ -356,6 +397,14 @@ def _format_one(s: dict) -> str:
     if s.get("time_share_by_stage"):
         out.append("time by stage            " + ", ".join(f"{name} {100 * share:.0f} %" for name, share
                                                             in s["time_share_by_stage"].items()))
+    y = s.get("refit_yield")
+    if y:
+        out.append(f"joint refits             median {y['refits_per_case_median']:.0f} per case, "
+                   f"{100 * y['refit_share_of_wall']:.0f} % of the wall time; "
+                   f"{100 * y['idle_share_of_refit_time']:.0f} % of their time in refits that did not lower their "
+                   f"model's BIC by {REFIT_GAIN_BIC:g} ("
+                   + ", ".join(f"{name} {100 * share:.0f} %" for name, share in y["idle_share_by_stage"].items())
+                   + ")")
     return "\n".join(out)
 
 

@@ -20,7 +20,10 @@ Decision rule (documented in the report):
 """
 from __future__ import annotations
 
+import time
+from contextvars import ContextVar
 from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -640,10 +643,34 @@ def _successive_halving(fun, lo: np.ndarray, hi: np.ndarray, x_starts: list[np.n
     return sorted(final, key=lambda r: r.cost), first[keep:] + final
 
 
+#: Where :func:`refine` reports each joint refit while set (a callable taking one dict: the effect, its base, its
+#: starts, its trial-point budget, its seconds and the model's BIC before and after): the benchmark's refit ledger
+#: (:func:`rotor_estimator.bench.diagnosis.diagnose_case`). Unset (``None``): nothing is timed or reported.
+REFIT_LEDGER: ContextVar[Callable[[dict], None] | None] = ContextVar("refit_ledger", default=None)
+
+
 def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
            reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = (),
            nl_starts: tuple[np.ndarray, ...] = (), start_pairs: tuple[tuple[np.ndarray, np.ndarray], ...] = (),
            polish_nfev: int = 30, evidence_starts: tuple[np.ndarray, ...] = ()) -> EffectFit:
+    """:func:`_refine`, reported to :data:`REFIT_LEDGER` when it is set."""
+    report = REFIT_LEDGER.get()
+    t0 = time.perf_counter() if report is not None else 0.0
+    out = _refine(ctx, effect, fit, base, reference_bic=reference_bic, max_nfev=max_nfev, extra_starts=extra_starts,
+                  nl_starts=nl_starts, start_pairs=start_pairs, polish_nfev=polish_nfev,
+                  evidence_starts=evidence_starts)
+    if report is not None:
+        report({"effect": effect.name, "base": [b.name for b in base],
+                "starts": 1 + len(extra_starts) + len(nl_starts) + len(start_pairs) + len(evidence_starts),
+                "max_nfev": int(max_nfev), "seconds": time.perf_counter() - t0,
+                "bic_before": float(fit.bic), "bic_after": float(out.bic)})
+    return out
+
+
+def _refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
+            reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = (),
+            nl_starts: tuple[np.ndarray, ...] = (), start_pairs: tuple[tuple[np.ndarray, np.ndarray], ...] = (),
+            polish_nfev: int = 30, evidence_starts: tuple[np.ndarray, ...] = ()) -> EffectFit:
     """Joint nonlinear refit of the 8 bearing coefficients with the effect (and the ``base`` effects).
 
     The first pass linearizes the nominal model about its own fit, which a large effect

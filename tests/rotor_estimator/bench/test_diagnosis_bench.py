@@ -235,3 +235,59 @@ def test_time_by_stage_is_each_stages_share_of_the_summed_time_largest_first(tmp
     assert abs(sum(shares.values()) - 1.0) < 1e-12 and abs(shares["stage 2/4 joint refits"] - 0.8) < 1e-12
     assert "time by stage            stage 2/4 joint refits 80 %, nominal fit 15 %, reading the record 5 %" \
         in format_score(s)
+
+
+def test_refit_ledger_assigns_each_refit_its_stage_and_the_yield_counts_time_in_refits_that_lowered_no_bic(
+        tmp_path, monkeypatch):
+    """``diagnose_case`` keeps every joint refit the diagnosis reports to ``REFIT_LEDGER`` with the stage it ran
+    in (the last progress line before it ended) and unsets the ledger after; :func:`refit_yield`'s idle share is
+    the refit time of refits whose BIC fell by less than ``REFIT_GAIN_BIC``, over all and per stage, and the
+    cases without a ledger (results written before it) are left out."""
+    from types import SimpleNamespace
+
+    import rotor_estimator.bench.diagnosis as bench
+    import rotor_estimator.core.config as config
+    import rotor_estimator.diagnosis.api as api
+    from rotor_estimator.diagnosis.ranking import REFIT_LEDGER
+
+    summary = {"best_effect": "none", "second_effect": "none", "verdict_set": [], "tie": None,
+               "coefficients_verdict": {}, "coefficients_verdict_std": {}, "top_two": ["none"],
+               "residual_rms_before": 1e-6, "residual_rms_after": 1e-6, "shrink_ratio": 1.0, "ranking": [],
+               "ranking_pairs": [], "best_effect_fit": None, "second_effect_fit": None}
+
+    def refit(name, seconds, before, after):
+        return {"effect": name, "base": [], "starts": 1, "max_nfev": 12, "seconds": seconds,
+                "bic_before": before, "bic_after": after}
+
+    def fake_diagnose(*_args, progress=None, **_kwargs):
+        report = REFIT_LEDGER.get()
+        progress("stage 2/4: joint refits (leader x)")
+        report(refit("pedestal", 6.0, 100.0, 99.5))   # lowered by 0.5: idle
+        report(refit("misalignment", 2.0, 100.0, 90.0))
+        progress("stage 4/4: pairs on the leading singles (top single x)")
+        report(refit("timing_skew", 2.0, 50.0, 50.0))  # idle
+        return SimpleNamespace(summary=lambda: summary)
+
+    monkeypatch.setattr(config, "load_rig_file", lambda _p: SimpleNamespace(rig=None, estimator=None))
+    monkeypatch.setattr(bench, "load_recording", lambda _p: None)
+    monkeypatch.setattr(api, "diagnose", fake_diagnose)
+    (tmp_path / "case_001").mkdir()
+    clock = iter([0.0, 1.0, 2.0, 20.0])
+    r = bench.diagnose_case(str(tmp_path / "case_001"), clock=lambda: next(clock))
+    assert REFIT_LEDGER.get() is None
+    assert [(f["effect"], f["stage"]) for f in r["refits"]] == [
+        ("pedestal", "stage 2/4 joint refits"), ("misalignment", "stage 2/4 joint refits"),
+        ("timing_skew", "stage 4/4 pairs on the leading singles")]
+
+    old = {k: v for k, v in r.items() if k != "refits"} | {"case": "case_002"}
+    y = bench.refit_yield([r, old])
+    assert y["refits_per_case_median"] == 3.0
+    assert abs(y["refit_share_of_wall"] - 10.0 / 20.0) < 1e-12
+    assert abs(y["idle_share_of_refit_time"] - 8.0 / 10.0) < 1e-12
+    assert list(y["idle_share_by_stage"]) == ["stage 2/4 joint refits", "stage 4/4 pairs on the leading singles"]
+    assert abs(y["idle_share_by_stage"]["stage 2/4 joint refits"] - 0.75) < 1e-12
+    assert y["idle_share_by_stage"]["stage 4/4 pairs on the leading singles"] == 1.0
+    assert bench.refit_yield([old]) == {}
+    assert ("joint refits             median 3 per case, 50 % of the wall time; 80 % of their time in refits that "
+            "did not lower their model's BIC by 1 (stage 2/4 joint refits 75 %, stage 4/4 pairs on the leading "
+            "singles 100 %)") in format_score(score([r], {"case_001": _label([])}))

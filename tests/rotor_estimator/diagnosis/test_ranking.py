@@ -673,3 +673,28 @@ def test_physical_std_of_an_unbounded_log_parameter_is_infinite_without_overflow
     assert np.isfinite(narrow["pedestal_frequency_hz"])
     # 0.001 decade of 100 Hz: ln(10) * 0.001 * 100 Hz = 0.23 Hz, within the 200 draws' sampling error
     assert narrow["pedestal_frequency_hz"] == pytest.approx(np.log(10) * 0.001 * 100.0, rel=0.15)
+
+
+def test_a_refit_is_reported_to_the_ledger_once_with_its_bic_before_and_after_and_unchanged_by_it():
+    """While ``REFIT_LEDGER`` is set, :func:`refine` reports each call once: the effect, its starts, its budget,
+    its seconds and the model's BIC before (the first pass's) and after (the returned fit's); the ledger only
+    watches, so the refit is the same fit to the bit as without it."""
+    from rotor_estimator.diagnosis.effects import ResidualUnbalance
+    from rotor_estimator.diagnosis.ranking import REFIT_LEDGER, fit_effect, nominal_solution, refine
+
+    ctx = _short_unbalance_context(impact=True)
+    effect = ResidualUnbalance()
+    first = fit_effect(ctx, effect)
+    bic0 = nominal_solution(ctx)[1]
+    quiet = refine(ctx, effect, first, reference_bic=bic0, extra_starts=(ctx.prior_coefficients,), max_nfev=6)
+    entries = []
+    token = REFIT_LEDGER.set(entries.append)
+    try:
+        watched = refine(ctx, effect, first, reference_bic=bic0, extra_starts=(ctx.prior_coefficients,), max_nfev=6)
+    finally:
+        REFIT_LEDGER.reset(token)
+    assert np.array_equal(watched.coefficients, quiet.coefficients) and watched.bic == quiet.bic
+    assert len(entries) == 1
+    e = entries[0]
+    assert (e["effect"], e["base"], e["starts"], e["max_nfev"]) == ("residual_unbalance", [], 2, 6)
+    assert e["bic_before"] == first.bic and e["bic_after"] == watched.bic and e["seconds"] > 0.0
