@@ -166,6 +166,9 @@ def result_of_summary(case: str, s: dict, seconds: float) -> dict:
             "top_two": s["top_two"], "before": s["residual_rms_before"], "after": s["residual_rms_after"],
             "shrink_ratio": s["shrink_ratio"],
             "ranking": [(r["effect"], r["delta_bic"], r["n_params"]) for r in s["ranking"]],
+            # each single's held-out RMS, which the decision rule also reads (a pair must predict it no worse)
+            "ranking_held_out_rms_m": {r["effect"]: r["held_out_rms_m"] for r in s["ranking"]},
+            "nominal_held_out_rms_m": s["decision_rule"]["nominal_held_out_rms_m"],
             "ranking_pairs": s["ranking_pairs"], "tie_detail": s["tie"],
             # the verdict's effect parameters with their reported std (scored by :func:`_parameter_coverage`)
             "best_effect_fit": s["best_effect_fit"], "second_effect_fit": s["second_effect_fit"],

@@ -212,7 +212,8 @@ def test_time_by_stage_is_each_stages_share_of_the_summed_time_largest_first(tmp
     summary = {"best_effect": "none", "second_effect": "none", "verdict_set": [], "tie": None,
                "coefficients_verdict": {}, "coefficients_verdict_std": {}, "top_two": ["none"],
                "residual_rms_before": 1e-6, "residual_rms_after": 1e-6, "shrink_ratio": 1.0, "ranking": [],
-               "ranking_pairs": [], "best_effect_fit": None, "second_effect_fit": None}
+               "ranking_pairs": [], "best_effect_fit": None, "second_effect_fit": None,
+               "decision_rule": {"nominal_held_out_rms_m": 1e-6}}
 
     def fake_diagnose(*_args, progress=None, **_kwargs):
         progress("nominal fit: EKF")
@@ -253,7 +254,8 @@ def test_refit_ledger_assigns_each_refit_its_stage_and_the_yield_counts_time_in_
     summary = {"best_effect": "none", "second_effect": "none", "verdict_set": [], "tie": None,
                "coefficients_verdict": {}, "coefficients_verdict_std": {}, "top_two": ["none"],
                "residual_rms_before": 1e-6, "residual_rms_after": 1e-6, "shrink_ratio": 1.0, "ranking": [],
-               "ranking_pairs": [], "best_effect_fit": None, "second_effect_fit": None}
+               "ranking_pairs": [], "best_effect_fit": None, "second_effect_fit": None,
+               "decision_rule": {"nominal_held_out_rms_m": 1e-6}}
 
     def refit(name, seconds, before, after):
         return {"effect": name, "base": [], "starts": 1, "max_nfev": 12, "seconds": seconds,

@@ -197,6 +197,9 @@ def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
     assert sc["top1"] == 1.0 and sc["n_coefficients_scored"] == 8
     assert [tuple(r) for r in kept["ranking"]] == [(r["effect"], r["delta_bic"], r["n_params"]) for r in s["ranking"]]
     assert kept["ranking_pairs"] == s["ranking_pairs"]
+    # and the held-out RMS the decision rule compares (each single's, the nominal's)
+    assert kept["ranking_held_out_rms_m"] == {r["effect"]: r["held_out_rms_m"] for r in s["ranking"]}
+    assert kept["nominal_held_out_rms_m"] == s["decision_rule"]["nominal_held_out_rms_m"] > 0.0
 
 
 def test_core_diagnosis_imports_no_ros():
