@@ -649,21 +649,17 @@ def _successive_halving(fun, lo: np.ndarray, hi: np.ndarray, x_starts: list[np.n
 REFIT_LEDGER: ContextVar[Callable[[dict], None] | None] = ContextVar("refit_ledger", default=None)
 
 
-def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *,
-           reference_bic: float, max_nfev: int = 20, extra_starts: tuple[np.ndarray, ...] = (),
-           nl_starts: tuple[np.ndarray, ...] = (), start_pairs: tuple[tuple[np.ndarray, np.ndarray], ...] = (),
-           polish_nfev: int = 30, evidence_starts: tuple[np.ndarray, ...] = ()) -> EffectFit:
-    """:func:`_refine`, reported to :data:`REFIT_LEDGER` when it is set."""
+def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), **options) -> EffectFit:
+    """:func:`_refine` (its keyword ``options``), reported to :data:`REFIT_LEDGER` when it is set."""
     report = REFIT_LEDGER.get()
-    t0 = time.perf_counter() if report is not None else 0.0
-    out = _refine(ctx, effect, fit, base, reference_bic=reference_bic, max_nfev=max_nfev, extra_starts=extra_starts,
-                  nl_starts=nl_starts, start_pairs=start_pairs, polish_nfev=polish_nfev,
-                  evidence_starts=evidence_starts)
-    if report is not None:
-        report({"effect": effect.name, "base": [b.name for b in base],
-                "starts": 1 + len(extra_starts) + len(nl_starts) + len(start_pairs) + len(evidence_starts),
-                "max_nfev": int(max_nfev), "seconds": time.perf_counter() - t0,
-                "bic_before": float(fit.bic), "bic_after": float(out.bic)})
+    if report is None:
+        return _refine(ctx, effect, fit, base, **options)
+    t0 = time.perf_counter()
+    out = _refine(ctx, effect, fit, base, **options)
+    starts = 1 + sum(len(options.get(k, ())) for k in ("extra_starts", "nl_starts", "start_pairs", "evidence_starts"))
+    report({"effect": effect.name, "base": [b.name for b in base], "starts": starts,
+            "max_nfev": int(options.get("max_nfev", 20)), "seconds": time.perf_counter() - t0,
+            "bic_before": float(fit.bic), "bic_after": float(out.bic)})
     return out
 
 
