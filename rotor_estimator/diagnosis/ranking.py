@@ -1170,6 +1170,28 @@ def forms_to_converge(singles: list[EffectFit], leaders: int = 2) -> set[str]:
     return {name for name in ranked if sum(f.name == name for f in singles) > 1}
 
 
+def pairs_to_refit(pairs: list[EffectFit], pool: list[EffectFit], top_name: str,
+                   by_name: dict[str, Effect]) -> set[int]:
+    """Indices of the ``pairs`` (sorted by their first pass's BIC) refitted jointly with the coefficients: the best
+    :data:`PAIR_REFINE`, and those whose first pass cannot judge them (each reason below). ``pool``: the singles the
+    pairs were fitted on; ``top_name``: the top single's."""
+    to_refine = set(range(min(PAIR_REFINE, len(pairs))))
+    # every pair on the top single whose second effect the first pass cannot judge (``pair_always_refitted``),
+    # and every structural effect on a force it carries (its first pass linearizes about the coefficients the
+    # force's single fit dragged to absorb the structure's own response)
+    to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].pair_always_refitted and (
+                  p.base == (top_name,) or _carries_base(by_name[p.name], (_base_single(pool, p),)))}
+    # every signal transform (a channel delay) on any base: its first pass delays the base's model about the
+    # coefficients the base's single fit dragged to absorb the delay too (misalignment with a 100 us skew ranked
+    # 11th in its first pass and was called runout)
+    to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].transforms_signal}
+    # every pair of an effect's form with the effect that carries what the form leaves out (its companion): the
+    # form's single fit dragged the coefficients to absorb that part (a coupling's forward 1X), so the pair's
+    # first pass, linearized there, cannot show it
+    to_refine |= {i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_single(pool, p).effect)}
+    return to_refine
+
+
 @single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
 def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, second_stage: bool = True,
                  threshold: float = SIGNIFICANCE_DELTA_BIC, progress=None) -> Ranking:
@@ -1286,22 +1308,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                 pairs.extend(_pair_first_pass(ctx, e, a, top.bic))
         pool = singles + simpler
         pairs.sort(key=lambda f: f.bic)
-        # refit jointly with the coefficients: the best pairs, and every pair on the top single whose second
-        # effect the first pass cannot judge (``pair_always_refitted``)
-        to_refine = set(range(min(PAIR_REFINE, len(pairs))))
-        # and every structural effect on a force it carries (its first pass linearizes about the coefficients
-        # the force's single fit dragged to absorb the structure's own response)
-        to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].pair_always_refitted and (
-            p.base == (top.name,) or _carries_base(by_name[p.name], (_base_single(pool, p),)))}
-        # and every signal transform (a channel delay) on any base: its first pass delays the base's model
-        # about the coefficients the base's single fit dragged to absorb the delay too (misalignment with a
-        # 100 us skew ranked 11th in its first pass and was called runout)
-        to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].transforms_signal}
-        # and every pair of an effect's form with the effect that carries what the form leaves out (its companion):
-        # the form's single fit dragged the coefficients to absorb that part (a coupling's forward 1X), so the
-        # pair's first pass, linearized there, cannot show it
-        to_refine |= {i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_single(pool, p).effect)}
-        for i in sorted(to_refine):
+        for i in sorted(pairs_to_refit(pairs, pool, top.name, by_name)):
             p = pairs[i]
             a = _base_single(pool, p)
             actx = a.ctx or ctx

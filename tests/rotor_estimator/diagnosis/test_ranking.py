@@ -698,3 +698,47 @@ def test_a_refit_is_reported_to_the_ledger_once_with_its_bic_before_and_after_an
     e = entries[0]
     assert (e["effect"], e["base"], e["starts"], e["max_nfev"]) == ("residual_unbalance", [], 2, 6)
     assert e["bic_before"] == first.bic and e["bic_after"] == watched.bic and e["seconds"] > 0.0
+
+
+def _pair_search_fixture():
+    """Stand-ins of a pair search: misalignment the top single, probe runout and a residual unbalance the other
+    bases, and nine pairs in their first pass's order; with the library's own effect declarations."""
+    from rotor_estimator.diagnosis.effects import LIBRARY, Misalignment
+
+    by_name = {e.name: e for e in LIBRARY}
+    coupling = Misalignment(backward_1x=True)
+
+    def single(name, effect=None):
+        return SimpleNamespace(name=name, effect=effect or by_name[name])
+
+    pool = [single("misalignment"), single("probe_runout"), single("residual_unbalance"),
+            single("misalignment", coupling)]
+
+    def pair(name, base, form=None):
+        return SimpleNamespace(name=name, base=(base,), base_effects=(form,) if form is not None else ())
+
+    pairs = [pair("probe_runout", "misalignment", by_name["misalignment"]),    # 0-2: the best three
+             pair("residual_unbalance", "misalignment", by_name["misalignment"]),
+             pair("tach_offset", "probe_runout"),
+             pair("pedestal", "misalignment", by_name["misalignment"]),        # 3: structural on the top single
+             pair("bearing_cubic", "probe_runout"),                            # 4: structural on a measurement
+             pair("pedestal", "residual_unbalance"),                           # 5: structural on a force it carries
+             pair("timing_skew", "probe_runout"),                              # 6: a signal transform, any base
+             pair("shaft_bending", "misalignment", by_name["misalignment"]),   # 7: nothing to say it is dragged
+             pair("residual_unbalance", "misalignment", coupling)]             # 8: the coupling's companion
+    return pairs, pool, by_name
+
+
+def test_the_pairs_refitted_are_the_best_and_those_whose_first_pass_cannot_judge_them():
+    """pairs_to_refit: the best PAIR_REFINE by first pass, every structural effect on the top single or on a force
+    it carries, every signal transform, every form with its companion; not a structural effect on another
+    measurement effect, nor an effect with none of these reasons however it ranks."""
+    from rotor_estimator.diagnosis.ranking import PAIR_REFINE, pairs_to_refit
+
+    pairs, pool, by_name = _pair_search_fixture()
+    assert PAIR_REFINE == 3
+    assert pairs_to_refit(pairs, pool, "misalignment", by_name) == {0, 1, 2, 3, 5, 6, 8}
+    # with probe runout on top, the pedestal on misalignment is still on a force it carries, and the cubic on
+    # runout is now on the top single
+    assert pairs_to_refit(pairs, pool, "probe_runout", by_name) == {0, 1, 2, 3, 4, 5, 6, 8}
+
