@@ -736,9 +736,26 @@ def test_the_pairs_refitted_are_the_best_and_those_whose_first_pass_cannot_judge
     from rotor_estimator.diagnosis.ranking import PAIR_REFINE, pairs_to_refit
 
     pairs, pool, by_name = _pair_search_fixture()
+    seen = {"pedestal": 40.0, "bearing_cubic": 3.0}  # both structures lower the BIC alone
     assert PAIR_REFINE == 3
-    assert pairs_to_refit(pairs, pool, "misalignment", by_name) == {0, 1, 2, 3, 5, 6, 8}
+    assert pairs_to_refit(pairs, pool, "misalignment", by_name, seen) == {0, 1, 2, 3, 5, 6, 8}
     # with probe runout on top, the pedestal on misalignment is still on a force it carries, and the cubic on
     # runout is now on the top single
-    assert pairs_to_refit(pairs, pool, "probe_runout", by_name) == {0, 1, 2, 3, 4, 5, 6, 8}
+    assert pairs_to_refit(pairs, pool, "probe_runout", by_name, seen) == {0, 1, 2, 3, 4, 5, 6, 8}
 
+
+def test_a_structure_its_own_refitted_single_does_not_show_is_not_refitted_as_a_partner():
+    """A structural partner whose single explains nothing after its refits (delta BIC <= 0) loses that reason to be
+    refitted (the pedestal on the top single and on a force it carries, the cubic on the top single); the best
+    pairs, the transforms and the companions are refitted as before, whatever the evidence."""
+    from rotor_estimator.diagnosis.ranking import pairs_to_refit
+
+    pairs, pool, by_name = _pair_search_fixture()
+    unseen = {"pedestal": -31.0, "bearing_cubic": 0.0}
+    assert pairs_to_refit(pairs, pool, "misalignment", by_name, unseen) == {0, 1, 2, 6, 8}
+    assert pairs_to_refit(pairs, pool, "probe_runout", by_name, unseen) == {0, 1, 2, 6, 8}
+    assert pairs_to_refit(pairs, pool, "probe_runout", by_name, {"pedestal": -31.0, "bearing_cubic": 2.0}) \
+        == {0, 1, 2, 4, 6, 8}
+    # a structural pair among the best by its first pass is refitted however its single fared
+    first = [pairs[3], *pairs[:3], *pairs[4:]]
+    assert 0 in pairs_to_refit(first, pool, "misalignment", by_name, unseen)
