@@ -1180,8 +1180,8 @@ def pairs_to_refit(pairs: list[EffectFit], pool: list[EffectFit], top_name: str,
     # and every structural effect on a force it carries (its first pass linearizes about the coefficients the
     # force's single fit dragged to absorb the structure's own response); but not a structure whose own single,
     # refitted from the prior r0 as well as from the nominal fit, explains nothing (delta BIC <= 0): that refit
-    # is not dragged, so a structure the record shows is seen there (seed 7427: these refits were about 9 % of
-    # the wall time and gave no pair among the five best)
+    # is not dragged, so a structure the record shows is seen there (seed 7427: these refits were 5.8 % of the
+    # wall time and gave no pair among the five best)
     to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].pair_always_refitted
                   and evidence.get(p.name, 0.0) > 0.0
                   and (p.base == (top_name,) or _carries_base(by_name[p.name], (_base_single(pool, p),)))}
