@@ -658,7 +658,8 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     out = _refine(ctx, effect, fit, base, **options)
     starts = 1 + sum(len(options.get(k, ())) for k in ("extra_starts", "nl_starts", "start_pairs", "evidence_starts"))
     report({"effect": effect.name, "base": [b.name for b in base], "starts": starts,
-            "max_nfev": int(options.get("max_nfev", 20)), "seconds": time.perf_counter() - t0,
+            "max_nfev": int(options.get("max_nfev", _refine.__kwdefaults__["max_nfev"])),
+            "seconds": time.perf_counter() - t0,
             "bic_before": float(fit.bic), "bic_after": float(out.bic)})
     return out
 
