@@ -120,7 +120,8 @@ REFIT_GAIN_BIC = 1.0
 def refit_yield(results: list[dict]) -> dict:
     """The joint refits of the cases that report them (:func:`diagnose_case`): how many per case, their share of
     the cases' summed wall time, and the share of refit time spent in refits that did not lower their model's
-    BIC by :data:`REFIT_GAIN_BIC`, over all and per stage (largest refit time first). Not a verdict on those
+    BIC by :data:`REFIT_GAIN_BIC`, over all and per stage (largest refit time first), and each stage's refits by the
+    search's reason for them (their share of the wall time and their idle share). Not a verdict on those
     refits (a refit that finds nothing better is how the search knows): a map for making the search cheaper."""
     cases = [r for r in results if r.get("refits") is not None]
     if not cases:
@@ -129,16 +130,25 @@ def refit_yield(results: list[dict]) -> dict:
     total = sum(f["seconds"] for f in refits)
     wall = sum(float(r["seconds"]) for r in cases)
     idle = lambda f: f["bic_before"] - f["bic_after"] < REFIT_GAIN_BIC  # noqa: E731
-    by_stage: dict[str, list[float]] = {}
-    for f in refits:
-        spent = by_stage.setdefault(f["stage"], [0.0, 0.0])
-        spent[0] += f["seconds"]
-        spent[1] += f["seconds"] if idle(f) else 0.0
+
+    def spent_by(key) -> dict[str, list[float]]:
+        """Seconds and idle seconds of the refits by ``key(refit)``, largest first."""
+        out: dict[str, list[float]] = {}
+        for f in refits:
+            spent = out.setdefault(key(f), [0.0, 0.0])
+            spent[0] += f["seconds"]
+            spent[1] += f["seconds"] if idle(f) else 0.0
+        return dict(sorted(out.items(), key=lambda kv: -kv[1][0]))
+
+    by_stage = spent_by(lambda f: f["stage"])
+    # the search's reason for each refit (ranking.refine's ``why``; results written before it have none)
+    by_reason = spent_by(lambda f: f"{f['stage'][:7]}: {f.get('why') or 'reason not recorded'}")
     return {"refits_per_case_median": float(np.median([len(r["refits"]) for r in cases])),
             "refit_share_of_wall": total / wall if wall > 0 else 0.0,
             "idle_share_of_refit_time": sum(f["seconds"] for f in refits if idle(f)) / total if total > 0 else 0.0,
-            "idle_share_by_stage": {k: (v[1] / v[0] if v[0] > 0 else 0.0) for k, v in
-                                    sorted(by_stage.items(), key=lambda kv: -kv[1][0])}}
+            "idle_share_by_stage": {k: (v[1] / v[0] if v[0] > 0 else 0.0) for k, v in by_stage.items()},
+            "by_reason": {k: {"share_of_wall": v[0] / wall if wall > 0 else 0.0,
+                              "idle_share": v[1] / v[0] if v[0] > 0 else 0.0} for k, v in by_reason.items()}}
 
 
 def time_by_stage(results: list[dict]) -> dict[str, float]:
@@ -408,6 +418,9 @@ def _format_one(s: dict) -> str:
                    f"model's BIC by {REFIT_GAIN_BIC:g} ("
                    + ", ".join(f"{name} {100 * share:.0f} %" for name, share in y["idle_share_by_stage"].items())
                    + ")")
+        out.append("refits by reason         " + "; ".join(
+            f"{why} {100 * r['share_of_wall']:.1f} % of the wall time ({100 * r['idle_share']:.0f} % idle)"
+            for why, r in y.get("by_reason", {}).items()))
     return "\n".join(out)
 
 

@@ -84,6 +84,9 @@ EVIDENCE_NFEV = 30
 PAIR_BASES = 3
 #: Best pairs refitted jointly with the coefficients.
 PAIR_REFINE = 3
+#: Why :func:`pairs_to_refit` refits a pair (its reasons, in this order), as the refit ledger records them.
+PAIR_REFIT_REASONS = ("best first pass", "structure on the top single", "structure carrying its base's force",
+                      "signal transform", "companion")
 #: Evaluations of the final single-start continuation of the top single and the leading pairs in a gap
 #: case: the multi-start refits stop after REFINE_NFEV (and a polish of 30), and two leaders can differ
 #: by less than their unfinished part (seed-2036 unbalance + pedestal stopped 24 in BIC below runout +
@@ -649,8 +652,10 @@ def _successive_halving(fun, lo: np.ndarray, hi: np.ndarray, x_starts: list[np.n
 REFIT_LEDGER: ContextVar[Callable[[dict], None] | None] = ContextVar("refit_ledger", default=None)
 
 
-def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), **options) -> EffectFit:
-    """:func:`_refine` (its keyword ``options``), reported to :data:`REFIT_LEDGER` when it is set."""
+def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *, why: str = "",
+           **options) -> EffectFit:
+    """:func:`_refine` (its keyword ``options``), reported to :data:`REFIT_LEDGER` when it is set, with ``why`` (the
+    search's reason for this refit; the ledger's only use of it)."""
     report = REFIT_LEDGER.get()
     if report is None:
         return _refine(ctx, effect, fit, base, **options)
@@ -660,7 +665,7 @@ def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFi
     report({"effect": effect.name, "base": [b.name for b in base], "starts": starts,
             "max_nfev": int(options.get("max_nfev", _refine.__kwdefaults__["max_nfev"])),
             "seconds": time.perf_counter() - t0,
-            "bic_before": float(fit.bic), "bic_after": float(out.bic)})
+            "bic_before": float(fit.bic), "bic_after": float(out.bic), "why": why})
     return out
 
 
@@ -1172,29 +1177,37 @@ def forms_to_converge(singles: list[EffectFit], leaders: int = 2) -> set[str]:
 
 
 def pairs_to_refit(pairs: list[EffectFit], pool: list[EffectFit], top_name: str, by_name: dict[str, Effect],
-                   evidence: dict[str, float]) -> set[int]:
-    """Indices of the ``pairs`` (sorted by their first pass's BIC) refitted jointly with the coefficients: the best
-    :data:`PAIR_REFINE`, and those whose first pass cannot judge them (each reason below). ``pool``: the singles the
-    pairs were fitted on; ``top_name``: the top single's; ``evidence``: each single's delta BIC after its refits."""
-    to_refine = set(range(min(PAIR_REFINE, len(pairs))))
+                   evidence: dict[str, float]) -> dict[int, tuple[str, ...]]:
+    """The ``pairs`` (sorted by their first pass's BIC) refitted jointly with the coefficients, each index with the
+    reasons it is refitted: the best :data:`PAIR_REFINE` (``"best first pass"``), and those whose first pass cannot
+    judge them (each reason below, named in :data:`PAIR_REFIT_REASONS`). ``pool``: the singles the pairs were fitted
+    on; ``top_name``: the top single's; ``evidence``: each single's delta BIC after its refits."""
+    reasons: dict[int, list[str]] = {i: ["best first pass"] for i in range(min(PAIR_REFINE, len(pairs)))}
+
+    def add(indices, reason: str) -> None:
+        for i in indices:
+            reasons.setdefault(i, []).append(reason)
+
     # every pair on the top single whose second effect the first pass cannot judge (``pair_always_refitted``),
     # and every structural effect on a force it carries (its first pass linearizes about the coefficients the
     # force's single fit dragged to absorb the structure's own response); but not a structure whose own single,
     # refitted from the prior r0 as well as from the nominal fit, explains nothing (delta BIC <= 0): that refit
     # is not dragged, so a structure the record shows is seen there (seed 7427: these refits were 5.8 % of the
     # wall time and gave no pair among the five best)
-    to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].pair_always_refitted
-                  and evidence.get(p.name, 0.0) > 0.0
-                  and (p.base == (top_name,) or _carries_base(by_name[p.name], (_base_single(pool, p),)))}
+    shown = [(i, p) for i, p in enumerate(pairs) if by_name[p.name].pair_always_refitted
+             and evidence.get(p.name, 0.0) > 0.0]
+    add((i for i, p in shown if p.base == (top_name,)), "structure on the top single")
+    add((i for i, p in shown if _carries_base(by_name[p.name], (_base_single(pool, p),))),
+        "structure carrying its base's force")
     # every signal transform (a channel delay) on any base: its first pass delays the base's model about the
     # coefficients the base's single fit dragged to absorb the delay too (misalignment with a 100 us skew ranked
     # 11th in its first pass and was called runout)
-    to_refine |= {i for i, p in enumerate(pairs) if by_name[p.name].transforms_signal}
+    add((i for i, p in enumerate(pairs) if by_name[p.name].transforms_signal), "signal transform")
     # every pair of an effect's form with the effect that carries what the form leaves out (its companion): the
     # form's single fit dragged the coefficients to absorb that part (a coupling's forward 1X), so the pair's
     # first pass, linearized there, cannot show it
-    to_refine |= {i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_single(pool, p).effect)}
-    return to_refine
+    add((i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_single(pool, p).effect)), "companion")
+    return {i: tuple(r) for i, r in sorted(reasons.items())}
 
 
 @single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
@@ -1242,7 +1255,9 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         eff = f.effect or by_name[f.name]
         always = eff.refit_always
         nl_starts = tuple(eff.refine_starts(ctx)) if (f.delta_bic > 0 or gap) else ()
-        if (name_rank[f.name] < REFINE_TOP and f.delta_bic > 0) or always or nl_starts:
+        why = [w for w, holds in (("leader", name_rank[f.name] < REFINE_TOP and f.delta_bic > 0),
+                                  ("refit always", always), ("structural starts", bool(nl_starts))) if holds]
+        if why:
             # from the prior r0 too: a large effect drags the nominal fit far from it (a 30 % probe gain
             # error moved kxx 15x), and the first pass's linearized jump can even be unstable
             starts = (ctx.prior_coefficients,)
@@ -1250,7 +1265,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                 if eff.starts_from_prior else ()
             singles[i] = refine(ctx, eff, f, reference_bic=bic0, extra_starts=starts, nl_starts=nl_starts,
                                 start_pairs=pairs_from_prior, evidence_starts=tuple(eff.evidence_starts(ctx)),
-                                max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
+                                max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV, why=" + ".join(why))
     # a gap: every form of the two leading effects is continued to convergence (FINAL_NFEV) before one stands
     # for its effect, so their race is not decided by which stopped nearer its optimum (a ROSS record of
     # separate pedestals: its form, probes fixed to ground, 2 200 in BIC behind probes on the housings after
@@ -1261,7 +1276,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     for i, f in enumerate(singles):
         if f.name in converged_forms:
             singles[i] = refine(ctx, f.effect or by_name[f.name], f, reference_bic=bic0, max_nfev=FINAL_NFEV,
-                                polish_nfev=0, start_pairs=best_other_form_start(multistart, f))
+                                polish_nfev=0, start_pairs=best_other_form_start(multistart, f),
+                                why="form of a leader converged")
     # each effect's best form (by BIC after its joint refit) stands for it from here on
     singles.sort(key=lambda f: f.bic)
     kept: dict[str, EffectFit] = {}
@@ -1286,7 +1302,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     # which of them stopped nearer its optimum
     for i, f in enumerate(singles[:2]):
         if f.delta_bic >= threshold and f.name not in converged_forms:
-            singles[i] = refine(ctx, by_name[f.name], f, reference_bic=ref, max_nfev=FINAL_NFEV, polish_nfev=0)
+            singles[i] = refine(ctx, by_name[f.name], f, reference_bic=ref, max_nfev=FINAL_NFEV, polish_nfev=0,
+                                why="leader converged")
     singles.sort(key=lambda f: -f.delta_bic)
     nominal = dict(nominal_bic=ref, nominal_held_out_rms_m=ho0, nominal_rss_m2=sol0.rss_m2,
                    nominal_coefficients=ref_coefficients)  # the reference every effect was measured against
@@ -1313,7 +1330,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                 pairs.extend(_pair_first_pass(ctx, e, a, top.bic))
         pool = singles + simpler
         pairs.sort(key=lambda f: f.bic)
-        for i in sorted(pairs_to_refit(pairs, pool, top.name, by_name, {f.name: f.delta_bic for f in singles})):
+        for i, reasons in pairs_to_refit(pairs, pool, top.name, by_name,
+                                         {f.name: f.delta_bic for f in singles}).items():
             p = pairs[i]
             a = _base_single(pool, p)
             actx = a.ctx or ctx
@@ -1329,13 +1347,13 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             pairs[i] = refine(actx, by_name[p.name], p, (a,), reference_bic=top.bic, extra_starts=from_prior,
                               nl_starts=nl_starts, start_pairs=pairs_from_prior,
                               evidence_starts=tuple(eff.evidence_starts(actx)),
-                              max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
+                              max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV, why=" + ".join(reasons))
         pairs.sort(key=lambda f: f.bic)
         # the leading pairs continued to convergence like the top single they must beat (FINAL_NFEV)
         for i, p in enumerate(pairs[:PAIR_REFINE]):
             a = _base_single(pool, p)
             pairs[i] = refine(a.ctx or ctx, by_name[p.name], p, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV,
-                              polish_nfev=0)
+                              polish_nfev=0, why="leading pair converged")
         pairs.sort(key=lambda f: f.bic)
         # the selected pair: the smallest BIC among those that beat the top single by the threshold, predict
         # the held-out span no worse and whose members do not cancel each other
@@ -1346,7 +1364,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             a_fit = _base_single(pool, cand)
             say("verdict: the selected pair continued to convergence")
             cand = refine(a_fit.ctx or ctx, by_name[cand.name], cand, (a_fit,), reference_bic=top.bic,
-                          max_nfev=VERDICT_NFEV, polish_nfev=0)
+                          max_nfev=VERDICT_NFEV, polish_nfev=0, why="verdict")
             say("coefficient uncertainty: likelihood profiles of the verdict's model")
             cand = with_coupled_covariance(cand, (a_fit,))
             cand = _parameters_widened(_profiled(cand, a_fit.ctx or ctx, by_name[cand.name], (a_fit,)))
@@ -1366,7 +1384,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                 and indistinguishable(f, best)][:1]
     if best is not None and second is None:
         say("verdict: the selected effect continued to convergence")
-        polished = refine(ctx, by_name[best.name], best, reference_bic=ref, max_nfev=VERDICT_NFEV, polish_nfev=0)
+        polished = refine(ctx, by_name[best.name], best, reference_bic=ref, max_nfev=VERDICT_NFEV, polish_nfev=0,
+                          why="verdict")
         singles = [polished if f is best else f for f in singles]
         best = polished
         say("coefficient uncertainty: likelihood profiles of the verdict's model")

@@ -257,17 +257,17 @@ def test_refit_ledger_assigns_each_refit_its_stage_and_the_yield_counts_time_in_
                "ranking_pairs": [], "best_effect_fit": None, "second_effect_fit": None,
                "decision_rule": {"nominal_held_out_rms_m": 1e-6}}
 
-    def refit(name, seconds, before, after):
+    def refit(name, seconds, before, after, why):
         return {"effect": name, "base": [], "starts": 1, "max_nfev": 12, "seconds": seconds,
-                "bic_before": before, "bic_after": after}
+                "bic_before": before, "bic_after": after, "why": why}
 
     def fake_diagnose(*_args, progress=None, **_kwargs):
         report = REFIT_LEDGER.get()
         progress("stage 2/4: joint refits (leader x)")
-        report(refit("pedestal", 6.0, 100.0, 99.5))   # lowered by 0.5: idle
-        report(refit("misalignment", 2.0, 100.0, 90.0))
+        report(refit("pedestal", 6.0, 100.0, 99.5, "structural starts"))   # lowered by 0.5: idle
+        report(refit("misalignment", 2.0, 100.0, 90.0, "leader"))
         progress("stage 4/4: pairs on the leading singles (top single x)")
-        report(refit("timing_skew", 2.0, 50.0, 50.0))  # idle
+        report(refit("timing_skew", 2.0, 50.0, 50.0, "signal transform"))  # idle
         return SimpleNamespace(summary=lambda: summary)
 
     monkeypatch.setattr(config, "load_rig_file", lambda _p: SimpleNamespace(rig=None, estimator=None))
@@ -289,7 +289,17 @@ def test_refit_ledger_assigns_each_refit_its_stage_and_the_yield_counts_time_in_
     assert list(y["idle_share_by_stage"]) == ["stage 2/4 joint refits", "stage 4/4 pairs on the leading singles"]
     assert abs(y["idle_share_by_stage"]["stage 2/4 joint refits"] - 0.75) < 1e-12
     assert y["idle_share_by_stage"]["stage 4/4 pairs on the leading singles"] == 1.0
+    # by the search's reason within each stage, largest first: share of the wall time and idle share
+    assert y["by_reason"] == {"stage 2: structural starts": {"share_of_wall": 0.3, "idle_share": 1.0},
+                              "stage 2: leader": {"share_of_wall": 0.1, "idle_share": 0.0},
+                              "stage 4: signal transform": {"share_of_wall": 0.1, "idle_share": 1.0}}
+    unrecorded = {**r, "refits": [{k: v for k, v in f.items() if k != "why"} for f in r["refits"]]}
+    assert list(bench.refit_yield([unrecorded])["by_reason"]) == ["stage 2: reason not recorded",
+                                                                  "stage 4: reason not recorded"]
     assert bench.refit_yield([old]) == {}
     assert ("joint refits             median 3 per case, 50 % of the wall time; 80 % of their time in refits that "
             "did not lower their model's BIC by 1 (stage 2/4 joint refits 75 %, stage 4/4 pairs on the leading "
             "singles 100 %)") in format_score(score([r], {"case_001": _label([])}))
+    assert ("refits by reason         stage 2: structural starts 30.0 % of the wall time (100 % idle); stage 2: "
+            "leader 10.0 % of the wall time (0 % idle); stage 4: signal transform 10.0 % of the wall time (100 % "
+            "idle)") in format_score(score([r], {"case_001": _label([])}))

@@ -690,13 +690,14 @@ def test_a_refit_is_reported_to_the_ledger_once_with_its_bic_before_and_after_an
     entries = []
     token = REFIT_LEDGER.set(entries.append)
     try:
-        watched = refine(ctx, effect, first, reference_bic=bic0, extra_starts=(ctx.prior_coefficients,), max_nfev=6)
+        watched = refine(ctx, effect, first, reference_bic=bic0, extra_starts=(ctx.prior_coefficients,), max_nfev=6,
+                         why="leader")
     finally:
         REFIT_LEDGER.reset(token)
     assert np.array_equal(watched.coefficients, quiet.coefficients) and watched.bic == quiet.bic
     assert len(entries) == 1
     e = entries[0]
-    assert (e["effect"], e["base"], e["starts"], e["max_nfev"]) == ("residual_unbalance", [], 2, 6)
+    assert (e["effect"], e["base"], e["starts"], e["max_nfev"], e["why"]) == ("residual_unbalance", [], 2, 6, "leader")
     assert e["bic_before"] == first.bic and e["bic_after"] == watched.bic and e["seconds"] > 0.0
 
 
@@ -733,15 +734,19 @@ def test_the_pairs_refitted_are_the_best_and_those_whose_first_pass_cannot_judge
     """pairs_to_refit: the best PAIR_REFINE by first pass, every structural effect on the top single or on a force
     it carries, every signal transform, every form with its companion; not a structural effect on another
     measurement effect, nor an effect with none of these reasons however it ranks."""
-    from rotor_estimator.diagnosis.ranking import PAIR_REFINE, pairs_to_refit
+    from rotor_estimator.diagnosis.ranking import PAIR_REFINE, PAIR_REFIT_REASONS, pairs_to_refit
 
     pairs, pool, by_name = _pair_search_fixture()
     seen = {"pedestal": 40.0, "bearing_cubic": 3.0}  # both structures lower the BIC alone
     assert PAIR_REFINE == 3
-    assert pairs_to_refit(pairs, pool, "misalignment", by_name, seen) == {0, 1, 2, 3, 5, 6, 8}
+    best, top, carrying, transform, companion = PAIR_REFIT_REASONS
+    assert pairs_to_refit(pairs, pool, "misalignment", by_name, seen) == {
+        0: (best,), 1: (best,), 2: (best,), 3: (top, carrying), 5: (carrying,), 6: (transform,), 8: (companion,)}
     # with probe runout on top, the pedestal on misalignment is still on a force it carries, and the cubic on
     # runout is now on the top single
-    assert pairs_to_refit(pairs, pool, "probe_runout", by_name, seen) == {0, 1, 2, 3, 4, 5, 6, 8}
+    assert pairs_to_refit(pairs, pool, "probe_runout", by_name, seen) == {
+        0: (best,), 1: (best,), 2: (best,), 3: (carrying,), 4: (top,), 5: (carrying,), 6: (transform,),
+        8: (companion,)}
 
 
 def test_a_structure_its_own_refitted_single_does_not_show_is_not_refitted_as_a_partner():
@@ -752,10 +757,10 @@ def test_a_structure_its_own_refitted_single_does_not_show_is_not_refitted_as_a_
 
     pairs, pool, by_name = _pair_search_fixture()
     unseen = {"pedestal": -31.0, "bearing_cubic": 0.0}
-    assert pairs_to_refit(pairs, pool, "misalignment", by_name, unseen) == {0, 1, 2, 6, 8}
-    assert pairs_to_refit(pairs, pool, "probe_runout", by_name, unseen) == {0, 1, 2, 6, 8}
-    assert pairs_to_refit(pairs, pool, "probe_runout", by_name, {"pedestal": -31.0, "bearing_cubic": 2.0}) \
+    assert set(pairs_to_refit(pairs, pool, "misalignment", by_name, unseen)) == {0, 1, 2, 6, 8}
+    assert set(pairs_to_refit(pairs, pool, "probe_runout", by_name, unseen)) == {0, 1, 2, 6, 8}
+    assert set(pairs_to_refit(pairs, pool, "probe_runout", by_name, {"pedestal": -31.0, "bearing_cubic": 2.0})) \
         == {0, 1, 2, 4, 6, 8}
     # a structural pair among the best by its first pass is refitted however its single fared
     first = [pairs[3], *pairs[:3], *pairs[4:]]
-    assert 0 in pairs_to_refit(first, pool, "misalignment", by_name, unseen)
+    assert pairs_to_refit(first, pool, "misalignment", by_name, unseen)[0] == ("best first pass",)
