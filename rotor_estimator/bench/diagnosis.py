@@ -64,8 +64,15 @@ def write_sets(out_dir: str | Path, n_cases: int, seed: int, *, generator: str =
     return labels
 
 
-def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic) -> dict:
-    """Diagnose one case directory (labels never read here); ``clock`` (seconds) times it and its stages."""
+def results_dir_name(decimate: int = 1) -> str:
+    """The directory of a set's kept results: ``results``, or ``results_decimate<q>`` for the diagnoses of the
+    records decimated by ``q`` (:func:`.diagnosis.decimation.decimated`), so both rates of one set are kept apart."""
+    return "results" if decimate == 1 else f"results_decimate{int(decimate)}"
+
+
+def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic, decimate: int = 1) -> dict:
+    """Diagnose one case directory (labels never read here); ``clock`` (seconds) times it and its stages;
+    ``decimate``: the diagnosis's own (``diagnose(..., decimate=...)``)."""
     import warnings
 
     from rotor_estimator.core.config import load_rig_file
@@ -81,7 +88,7 @@ def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic) ->
     refits: list[dict] = []  # each joint refit, with the stage it ran in
     ledger = REFIT_LEDGER.set(lambda entry: refits.append({**entry, "stage": stage_name(events[-1][1])}))
     try:
-        s = diagnose(load_recording(d / "recording.npz"), rig_file.rig, rig_file.estimator,
+        s = diagnose(load_recording(d / "recording.npz"), rig_file.rig, rig_file.estimator, decimate=decimate,
                      progress=progress).summary()
     except Exception as exc:  # a failed case is scored as a miss, not a crash of the benchmark
         return {"case": d.name, "error": repr(exc), "seconds": clock() - t0}
@@ -424,12 +431,12 @@ def _format_one(s: dict) -> str:
     return "\n".join(out)
 
 
-def diagnose_and_keep(case_dir: str, results_dir: str) -> dict:
+def diagnose_and_keep(case_dir: str, results_dir: str, decimate: int = 1) -> dict:
     """:func:`diagnose_case`, its result also written to ``results_dir/<case>.json`` (atomically: a run
     stopped mid-write leaves no half file, and the case is diagnosed again on resume)."""
     import os
 
-    r = diagnose_case(case_dir)
+    r = diagnose_case(case_dir, decimate=decimate)
     target = Path(results_dir) / f"{Path(case_dir).name}.json"
     tmp = target.with_suffix(f".json.tmp{os.getpid()}")
     tmp.write_text(json.dumps(r, indent=1, default=str))
@@ -450,11 +457,11 @@ def kept_results(results_dir: Path, case_dirs: list[str]) -> dict[str, dict]:
     return kept
 
 
-def score_sets(set_dirs: list[str | Path]) -> dict:
+def score_sets(set_dirs: list[str | Path], decimate: int = 1) -> dict:
     """Score the kept results of several blind sets together (e.g. two seeds of one generator): case ids are
     prefixed with their set's directory name, ``cases_in_set`` counts every case of every set (the score says
     PARTIAL when some are not diagnosed yet), and each generator is scored apart. With one set the ids are
-    kept as they are."""
+    kept as they are. ``decimate``: score the diagnoses of the records decimated by it (:func:`results_dir_name`)."""
     results, labels, families, total, rigs = [], {}, [], 0, {}
     for out in map(Path, set_dirs):
         if not (out / "cases").is_dir() or not (out / "labels" / "labels.json").is_file():
@@ -463,13 +470,14 @@ def score_sets(set_dirs: list[str | Path]) -> dict:
         set_labels = json.loads((out / "labels" / "labels.json").read_text())
         total += len(case_dirs)
         families += [generator_family(set_labels[Path(d).name]) for d in case_dirs]
-        for cid, r in kept_results(out / "results", case_dirs).items():
+        for cid, r in kept_results(out / results_dir_name(decimate), case_dirs).items():
             key = f"{out.name}/{cid}" if len(set_dirs) > 1 else cid
             results.append({**r, "case": key})
             labels[key] = set_labels[cid]
             rigs[key] = rig_facts(out / "cases" / cid)
     if not results:
-        raise InputError(f"{', '.join(map(str, set_dirs))}: no case diagnosed yet (results/ is empty)")
+        raise InputError(f"{', '.join(map(str, set_dirs))}: no case diagnosed yet ({results_dir_name(decimate)}/ "
+                         "is empty)")
     s = score(results, labels, rigs)
     s["cases_in_set"] = total
     s["by_generator"] = score_by_generator(results, labels, rigs)
@@ -480,10 +488,11 @@ def score_sets(set_dirs: list[str | Path]) -> dict:
 
 def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, *, jobs: int = 2,
         use_ross: bool = True, progress=None, generator: str = "own", generate: bool = True,
-        on_diagnosed=None) -> dict:
+        on_diagnosed=None, decimate: int = 1) -> dict:
     """Generate (``generator``: own, independent or both; ``generate=False`` diagnoses the set already in
     ``out_dir``, skipping the cases with a kept result), diagnose (``jobs`` processes; ``on_diagnosed(done,
-    total)`` after each case), score each generator apart (:func:`score_sets`). Returns the score dict."""
+    total)`` after each case; ``decimate``: the diagnosis's, its results kept apart by :func:`results_dir_name`),
+    score each generator apart (:func:`score_sets`). Returns the score dict."""
     import functools
     import tempfile
 
@@ -499,7 +508,7 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
         raise InputError(f"{out}: not a blind set (expected cases/ and labels/labels.json)")
     t_gen = time.time() - t0
     case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
-    results_dir = out / "results"
+    results_dir = out / results_dir_name(decimate)
     results_dir.mkdir(exist_ok=True)
     kept = kept_results(results_dir, case_dirs)
     pending = [d for d in case_dirs if Path(d).name not in kept]
@@ -512,9 +521,9 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
 
     # a local Dask cluster of ``jobs`` single-thread processes (rotor_estimator.batch.runner)
     if pending:  # each result is kept in results/ by the worker itself
-        map_ordered(functools.partial(diagnose_and_keep, results_dir=str(results_dir)), pending,
+        map_ordered(functools.partial(diagnose_and_keep, results_dir=str(results_dir), decimate=decimate), pending,
                     workers=max(1, jobs), inline=False, progress=_tick)
-    s = score_sets([out])  # the labels are opened only now
+    s = score_sets([out], decimate)  # the labels are opened only now
     results = list(kept_results(results_dir, case_dirs).values())
     s["generation_seconds"] = t_gen
     s["total_seconds"] = time.time() - t0

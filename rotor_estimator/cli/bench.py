@@ -49,12 +49,13 @@ def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
         raise InputError("several --set directories are scored together with --score-only; diagnose each first "
                          "(`bench diagnosis --set DIR`)")
     if args.score_only:
-        s = score_sets(args.set)
+        s = score_sets(args.set, args.decimate)
     else:
         s = run(args.cases, args.seed, args.set[0] if args.set else args.out, jobs=args.jobs,
                 use_ross=not args.no_ross, generator=args.generator, generate=args.set is None,
                 progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True),
-                on_diagnosed=lambda k, n: print(f"diagnosed {k} / {n}", file=sys.stderr, flush=True))
+                on_diagnosed=lambda k, n: print(f"diagnosed {k} / {n}", file=sys.stderr, flush=True),
+                decimate=args.decimate)
     if args.json:
         brief = {k: v for k, v in s.items() if k != "rows"}
         brief["by_generator"] = {g: {k: v for k, v in sub.items() if k != "rows"}
@@ -180,6 +181,9 @@ def add_parser(subparsers: Any) -> None:
     b.add_argument("--score-only", action="store_true",
                    help="with --set: score the cases diagnosed so far (results/ of each set, pooled), diagnose none; "
                         "a rerun without it resumes the others")
+    b.add_argument("--decimate", type=cli_types.positive_int, default=1, metavar="Q",
+                   help="diagnose each record low-pass filtered and decimated by Q (`diagnose --decimate`); the "
+                        "results are kept in results_decimate<Q>/ of each set, apart from the full rate's (default 1)")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_diagnosis)
 

@@ -348,12 +348,16 @@ def analysis_window(recording: RigRecording, max_s: float = MAX_FIT_WINDOW_S) ->
 @single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
 def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *, passes: int = 2,
              library: tuple[Effect, ...] = LIBRARY, max_fit_window_s: float = MAX_FIT_WINDOW_S,
-             progress=None) -> Diagnosis:
+             decimate: int = 1, progress=None) -> Diagnosis:
     """Fit the nominal model, budget its residual, rank the candidate effects, tabulate before/after.
 
     A record longer than ``max_fit_window_s`` is diagnosed on one window of it (see
-    :func:`analysis_window`); ``summary()['data']['analysis_window']`` says which. ``progress``, when given,
-    is called with one line of text at each stage."""
+    :func:`analysis_window`); ``summary()['data']['analysis_window']`` says which. ``decimate`` > 1: that window
+    low-pass filtered and decimated by that factor first (:func:`.decimation.decimated`; fewer samples, the same
+    band and information on the parameters), ``summary()['data']['decimation']`` says how. ``progress``, when
+    given, is called with one line of text at each stage."""
+    from rotor_estimator.diagnosis.decimation import decimated
+
     full_n = len(recording)
     start, stop, why = analysis_window(recording, max_fit_window_s)
     window = None
@@ -362,6 +366,8 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
         window = {"start_s": float(t[start] - t[0]), "stop_s": float(t[stop - 1] - t[0]),
                   "record_s": float(t[-1] - t[0]), "rule": why}
         recording = recording.slice(start, stop)
+    undecimated_n = len(recording)
+    recording = decimated(recording, decimate)
     say = progress or (lambda text: None)
     say(f"nominal fit: EKF ({passes} passes), then output-error refinement of the 8 coefficients")
     ctx = build_context(recording, rig, config, passes=passes)
@@ -407,6 +413,9 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     data = data_accounting(recording, ctx)
     data["nominal_slowest_decay_1_per_s"], stability_warnings = nominal_stability(ctx)
     data["warnings"] += stability_warnings
+    if decimate != 1:
+        data["decimation"] = {**recording.meta["decimation"], "samples_before": undecimated_n,
+                              "sample_rate_hz": float(1.0 / np.median(np.diff(recording.time_s())))}
     if window is not None:
         data["analysis_window"] = window
         data["samples_in_record"] = full_n

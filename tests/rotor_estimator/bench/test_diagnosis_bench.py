@@ -161,6 +161,47 @@ def test_two_sets_are_pooled_with_their_cases_kept_apart(tmp_path):
     assert "PARTIAL: 2 of the set's 4 cases" in format_score(s)
 
 
+def test_a_decimated_diagnosis_is_asked_for_and_kept_and_scored_apart_from_the_full_rates(tmp_path, monkeypatch):
+    """``bench diagnosis --decimate Q``: each case's diagnosis is asked for at that factor, its result is kept in
+    ``results_decimate<Q>/`` (the full rate's ``results/`` untouched), and ``score_sets(..., decimate=Q)`` scores
+    those results alone."""
+    import json
+    from types import SimpleNamespace
+
+    import rotor_estimator.bench.diagnosis as bench
+    import rotor_estimator.core.config as config
+    import rotor_estimator.diagnosis.api as api
+
+    asked = []
+    summary = {"best_effect": "pedestal", "second_effect": "none", "verdict_set": [], "tie": None,
+               "coefficients_verdict": {}, "coefficients_verdict_std": {}, "top_two": ["pedestal"],
+               "residual_rms_before": 2e-6, "residual_rms_after": 1e-6, "shrink_ratio": 2.0, "ranking": [],
+               "ranking_pairs": [], "best_effect_fit": None, "second_effect_fit": None,
+               "decision_rule": {"nominal_held_out_rms_m": 1e-6}}
+
+    def fake_diagnose(*_args, decimate=1, **_kwargs):
+        asked.append(decimate)
+        return SimpleNamespace(summary=lambda: summary)
+
+    monkeypatch.setattr(config, "load_rig_file", lambda _p: SimpleNamespace(rig=None, estimator=None))
+    monkeypatch.setattr(bench, "load_recording", lambda _p: None)
+    monkeypatch.setattr(api, "diagnose", fake_diagnose)
+    (tmp_path / "cases" / "case_000").mkdir(parents=True)
+    (tmp_path / "labels").mkdir()
+    (tmp_path / "labels" / "labels.json").write_text(json.dumps({"case_000": _label(["pedestal"])}))
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "case_000.json").write_text(json.dumps(
+        {"case": "case_000", "best_effect": "probe_runout", "second_effect": "none", "top_two": ["probe_runout"],
+         "before": 2e-6, "shrink_ratio": 2.0, "seconds": 4.0}))
+    assert bench.results_dir_name(1) == "results" and bench.results_dir_name(2) == "results_decimate2"
+    (tmp_path / "results_decimate2").mkdir()
+    bench.diagnose_and_keep(str(tmp_path / "cases" / "case_000"), str(tmp_path / "results_decimate2"), decimate=2)
+    assert asked == [2]
+    monkeypatch.undo()  # scoring reads the (absent) rig files itself
+    assert bench.score_sets([tmp_path], decimate=2)["top1"] == 1.0   # the decimated diagnosis: pedestal
+    assert bench.score_sets([tmp_path])["top1"] == 0.0               # the full rate's: runout, kept as it was
+
+
 def test_a_case_whose_diagnosis_raises_is_kept_as_an_error_and_scored_as_a_miss(tmp_path, monkeypatch):
     """One failing case must not stop a benchmark of hours: ``diagnose_case`` keeps the error, and ``score``
     counts it as a miss (verdict "error")."""

@@ -407,3 +407,26 @@ def test_a_diagnosis_with_no_effect_to_rank_reports_the_nominal_model(rig_file, 
 
     s = api.diagnose(short_control.recording, rig_file.rig, rig_file.estimator, library=()).summary()
     assert s["best_effect"] == "none" and s["ranking"] == [] and s["residual_rms_after"] == s["residual_rms_before"]
+
+
+def test_a_decimated_diagnosis_says_how_it_was_decimated_and_sees_the_same_noise(rig_file, short_control):
+    """``diagnose(..., decimate=2)`` runs on the filtered record at half the rate and says so in its data (factor,
+    taps, the edges dropped, samples before, the new rate); its noise floor is the full rate's over sqrt(2) (the
+    kept band's share of white noise) within 5 %, and its coefficients agree with the full rate's within 3 of their
+    stds: the same record, the same information."""
+    import rotor_estimator.diagnosis.api as api
+
+    full = api.diagnose(short_control.recording, rig_file.rig, rig_file.estimator, library=())
+    half = api.diagnose(short_control.recording, rig_file.rig, rig_file.estimator, library=(), decimate=2)
+    d = half.summary()["data"]["decimation"]
+    assert (d["factor"], d["samples_before"]) == (2, len(short_control.recording))
+    assert abs(d["sample_rate_hz"] - 10000.0) < 1e-6
+    assert "decimation" not in full.summary()["data"]
+    ratio = float(np.mean(half.ctx.noise_std_m) / np.mean(full.ctx.noise_std_m))
+    assert abs(ratio * np.sqrt(2.0) - 1.0) < 0.05
+    def nominal(d):
+        row = d.table[0]  # the nominal model's row: its coefficients and their stds
+        return np.array(list(row["coefficients"].values())), np.array(list(row["coefficients_std"].values()))
+
+    (c1, s1), (c2, s2) = nominal(full), nominal(half)
+    assert np.all(np.abs(c2 - c1) < 3.0 * np.hypot(s1, s2)), (c2 - c1) / np.hypot(s1, s2)
