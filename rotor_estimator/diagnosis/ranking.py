@@ -1182,7 +1182,8 @@ def pairs_to_refit(pairs: list[EffectFit], pool: list[EffectFit], top_name: str,
     reasons it is refitted: the best :data:`PAIR_REFINE` (``"best first pass"``), and those whose first pass cannot
     judge them (each reason below, named in :data:`PAIR_REFIT_REASONS`). ``pool``: the singles the pairs were fitted
     on; ``top_name``: the top single's; ``evidence``: each single's delta BIC after its refits."""
-    reasons: dict[int, list[str]] = {i: ["best first pass"] for i in range(min(PAIR_REFINE, len(pairs)))}
+    best, on_top, carrying, transform, companion = PAIR_REFIT_REASONS
+    reasons: dict[int, list[str]] = {i: [best] for i in range(min(PAIR_REFINE, len(pairs)))}
 
     def add(indices, reason: str) -> None:
         for i in indices:
@@ -1196,17 +1197,16 @@ def pairs_to_refit(pairs: list[EffectFit], pool: list[EffectFit], top_name: str,
     # wall time and gave no pair among the five best)
     shown = [(i, p) for i, p in enumerate(pairs) if by_name[p.name].pair_always_refitted
              and evidence.get(p.name, 0.0) > 0.0]
-    add((i for i, p in shown if p.base == (top_name,)), "structure on the top single")
-    add((i for i, p in shown if _carries_base(by_name[p.name], (_base_single(pool, p),))),
-        "structure carrying its base's force")
+    add((i for i, p in shown if p.base == (top_name,)), on_top)
+    add((i for i, p in shown if _carries_base(by_name[p.name], (_base_single(pool, p),))), carrying)
     # every signal transform (a channel delay) on any base: its first pass delays the base's model about the
     # coefficients the base's single fit dragged to absorb the delay too (misalignment with a 100 us skew ranked
     # 11th in its first pass and was called runout)
-    add((i for i, p in enumerate(pairs) if by_name[p.name].transforms_signal), "signal transform")
+    add((i for i, p in enumerate(pairs) if by_name[p.name].transforms_signal), transform)
     # every pair of an effect's form with the effect that carries what the form leaves out (its companion): the
     # form's single fit dragged the coefficients to absorb that part (a coupling's forward 1X), so the pair's
     # first pass, linearized there, cannot show it
-    add((i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_single(pool, p).effect)), "companion")
+    add((i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_single(pool, p).effect)), companion)
     return {i: tuple(r) for i, r in sorted(reasons.items())}
 
 
