@@ -9,13 +9,14 @@ batch ends for any reason (an interrupt keeps every finished row).
 from __future__ import annotations
 
 import datetime
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
 from rotor_estimator.batch.runner import run_tasks
-from rotor_estimator.batch.table import ERROR, finished, read_table, table_format, write_table
+from rotor_estimator.batch.table import ERROR, OK, finished, read_table, table_format, write_table
 from rotor_estimator.batch.tasks import BatchOptions, package_version, run_row
 from rotor_estimator.core.errors import InputError
 
@@ -61,6 +62,12 @@ class TableWriter:
         self.last = time.monotonic()
 
 
+def _row_decimate(row: dict) -> int:
+    """The decimation factor a diagnose row was computed at (tables written before the column: 1)."""
+    value = row.get("decimate")
+    return 1 if value is None or (isinstance(value, float) and math.isnan(value)) else int(value)
+
+
 def run_batch(options: BatchOptions, recordings: list[str], out: str | Path | None = None, *,
               workers: int | None = None, scheduler: str | None = None, force: bool = False,
               progress: bool = True, on_row: Callable[[dict], Any] | None = None,
@@ -77,6 +84,10 @@ def run_batch(options: BatchOptions, recordings: list[str], out: str | Path | No
             command, previous = read_table(out)
             if command is not None and command != options.command:
                 raise InputError(f"--out {out}: holds {command} rows; a {options.command} batch needs its own table")
+            factors = sorted({_row_decimate(r) for r in previous if r.get("status") == OK} - {options.decimate})
+            if options.command == "diagnose" and factors and not force:
+                raise InputError(f"--out {out}: holds rows diagnosed at decimate {', '.join(map(str, factors))}; a "
+                                 f"--decimate {options.decimate} batch needs its own table (or --force to redo them)")
     done = set() if force else finished(previous)
     todo = [p for p in recordings if p not in done]
     writer = TableWriter(out, options.command, previous, list(recordings), flush_every_s)

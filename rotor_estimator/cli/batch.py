@@ -23,7 +23,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
     # absolute: the workers may run in another directory (or on another machine with the same file system)
     options = BatchOptions(args.batch_command, rig_path=str(Path(args.rig).resolve()) if args.rig else None,
                            rotor=args.rotor, passes=args.passes, method=args.method,
-                           salvage=args.salvage).validate()
+                           salvage=args.salvage, decimate=args.decimate).validate()
     recordings, skipped_files = expand_inputs(args.inputs)
     if skipped_files:
         print(f"rotor-estimator: {skipped_files} file(s) matched but are not recordings (bag directory, .mcap "
@@ -81,8 +81,11 @@ def add_parser(subparsers: Any) -> None:
         if name == "diagnose":
             p.add_argument("--passes", type=cli_types.passes, default=2,
                            help="EKF passes of the nominal fit (default 2)")
+            p.add_argument("--decimate", type=cli_types.positive_int, default=1, metavar="Q",
+                           help="diagnose each recording low-pass filtered and decimated by Q, as `diagnose "
+                                "--decimate` (default 1); the table's decimate column says at which factor")
         else:
-            p.set_defaults(passes=2)
+            p.set_defaults(passes=2, decimate=1)
         if name == "identify":
             p.add_argument("--method", default="auto", help="auto (batch-ml), batch-ml, ekf+rts, ekf, ukf")
         else:

@@ -31,3 +31,34 @@ def test_batch_diagnose_row_equals_the_diagnosis_summary(short_bags, dask_cluste
     assert row["verdict_set"] == ";".join(d["verdict_set"])
     assert row["kxx_n_per_m"] == d["coefficients_verdict"]["kxx_N_per_m"]
     assert row["cyy_std_n_s_per_m"] == d["coefficients_verdict_std"]["cyy_N_s_per_m"] > 0
+
+
+def test_batch_diagnose_decimated_row_equals_the_decimated_diagnosis_and_a_table_keeps_one_factor(
+        short_bags, dask_cluster, seed_rig_file, tmp_path):
+    """`batch diagnose --decimate 2`: the row equals `diagnose(..., decimate=2).summary()` (verdict, residuals,
+    samples used: fewer than the full rate's), its decimate column is 2; resuming that table at another factor
+    is refused (its ok rows would mix two rates) unless forced; decimate on another command is refused."""
+    from rotor_estimator.core.errors import InputError
+
+    folder, recordings = short_bags
+    path = next(p for p in recordings if p.endswith("run2"))
+    table = tmp_path / "diagnosis.csv"
+    s = run_batch(BatchOptions("diagnose", rig_path=str(SEED_RIG_PATH), decimate=2), [path], table,
+                  scheduler=dask_cluster.scheduler_address, progress=False)
+    row = s.rows[0]
+    assert row["status"] == "ok", row["error"]
+    d = diagnose(recordings[path], seed_rig_file.rig, seed_rig_file.estimator, passes=2, decimate=2).summary()
+    assert row["decimate"] == 2 == d["data"]["decimation"]["factor"]
+    assert row["verdict"] == d["best_effect"]
+    assert row["residual_rms_after_m"] == d["residual_rms_after"] and row["noise_std_m"] == d["noise_std_m"]
+    assert row["samples_used"] == d["data"]["samples_used"] < len(recordings[path]) / 2
+    with pytest.raises(InputError, match="decimate 2.*--decimate 1"):
+        run_batch(BatchOptions("diagnose", rig_path=str(SEED_RIG_PATH)), [path], table,
+                  scheduler=dask_cluster.scheduler_address, progress=False)
+    again = run_batch(BatchOptions("diagnose", rig_path=str(SEED_RIG_PATH), decimate=2), [path], table,
+                      scheduler=dask_cluster.scheduler_address, progress=False)
+    assert again.skipped == 1 and again.computed == 0
+    with pytest.raises(InputError, match="decimate is an option of diagnose only"):
+        BatchOptions("identify", decimate=2).validate()
+    with pytest.raises(InputError, match="decimate must be a positive integer"):
+        BatchOptions("diagnose", rig_path=str(SEED_RIG_PATH), decimate=0).validate()
