@@ -62,10 +62,10 @@ class TableWriter:
         self.last = time.monotonic()
 
 
-def _row_decimate(row: dict) -> int:
-    """The decimation factor a diagnose row was computed at (tables written before the column: 1)."""
+def _row_decimate(row: dict) -> str:
+    """The ``--decimate`` a diagnose row was computed with (tables written before the column: 1, the full rate)."""
     value = row.get("decimate")
-    return 1 if value is None or (isinstance(value, float) and math.isnan(value)) else int(value)
+    return "1" if value is None or (isinstance(value, float) and math.isnan(value)) or value == "" else str(value)
 
 
 def run_batch(options: BatchOptions, recordings: list[str], out: str | Path | None = None, *,
@@ -84,10 +84,11 @@ def run_batch(options: BatchOptions, recordings: list[str], out: str | Path | No
             command, previous = read_table(out)
             if command is not None and command != options.command:
                 raise InputError(f"--out {out}: holds {command} rows; a {options.command} batch needs its own table")
-            factors = sorted({_row_decimate(r) for r in previous if r.get("status") == OK} - {options.decimate})
-            if options.command == "diagnose" and factors and not force:
-                raise InputError(f"--out {out}: holds rows diagnosed at decimate {', '.join(map(str, factors))}; a "
-                                 f"--decimate {options.decimate} batch needs its own table (or --force to redo them)")
+            asked = str(options.diagnose_decimate)
+            others = sorted({_row_decimate(r) for r in previous if r.get("status") == OK} - {asked})
+            if options.command == "diagnose" and others and not force:
+                raise InputError(f"--out {out}: holds rows diagnosed with --decimate {', '.join(others)}; a "
+                                 f"--decimate {asked} batch needs its own table (or --force to redo them)")
     done = set() if force else finished(previous)
     todo = [p for p in recordings if p not in done]
     writer = TableWriter(out, options.command, previous, list(recordings), flush_every_s)

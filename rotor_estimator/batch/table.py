@@ -56,7 +56,8 @@ _PER_COMMAND = {
         ("residual_rms_before_m", "float"), ("residual_rms_after_m", "float"), ("noise_std_m", "float"),
         ("gap_ratio_before", "float"), ("gap_ratio_after", "float"), ("shrink_ratio", "float"),
         ("best_delta_bic", "float"), ("dominant_channel", "string"), ("dominant_band", "string"),
-        ("tie_set", "string"), ("unexplained", "string"), ("samples_used", "int"), ("decimate", "int")],
+        ("tie_set", "string"), ("unexplained", "string"), ("samples_used", "int"), ("decimate", "string"),
+        ("decimation_factor", "int")],
     "virtual-sensing": [
         ("filter", "string"), ("confidence", "float"), ("channels", "int"), ("channels_calibrated", "int"),
         ("coverage_mean", "float"), ("coverage_min", "float"), ("rms_error_max_m", "float"),

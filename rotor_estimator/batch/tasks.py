@@ -39,16 +39,22 @@ class BatchOptions:
     passes: int = 2                      # EKF passes of diagnose's nominal fit
     method: str = "auto"                 # identify's method
     salvage: bool = False                # use the intact part of a damaged bag
-    decimate: int = 1                    # diagnose's decimation factor (``diagnose --decimate``)
+    decimate: int | str | None = None    # diagnose's ``--decimate`` (None: its default, auto)
+
+    @property
+    def diagnose_decimate(self) -> int | str:
+        """The ``decimate`` diagnose runs with."""
+        return "auto" if self.decimate is None else self.decimate
 
     def validate(self) -> "BatchOptions":
         if self.command not in COMMANDS:
             raise InputError(f"batch: command must be one of {', '.join(COMMANDS)}, got {self.command!r}")
         if not 1 <= int(self.passes) <= 20:
             raise InputError(f"batch: passes must be from 1 to 20, got {self.passes}")
-        if isinstance(self.decimate, bool) or not isinstance(self.decimate, int) or self.decimate < 1:
-            raise InputError(f"batch: decimate must be a positive integer, got {self.decimate!r}")
-        if self.decimate != 1 and self.command != "diagnose":
+        if self.decimate is not None and self.decimate != "auto" and (
+                isinstance(self.decimate, bool) or not isinstance(self.decimate, int) or self.decimate < 1):
+            raise InputError(f"batch: decimate must be auto or a positive integer, got {self.decimate!r}")
+        if self.decimate is not None and self.command != "diagnose":
             raise InputError(f"batch {self.command}: decimate is an option of diagnose only, got {self.decimate}")
         if self.command == "diagnose" and self.rig_path is None:
             raise InputError("batch diagnose: --rig is required (as for `rotor-estimator diagnose`)")
@@ -191,7 +197,7 @@ def _diagnose(path: Path, options: BatchOptions, row: dict) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # as the diagnose command
         s = diagnose(recording, rig_file.rig, rig_file.estimator, passes=options.passes,
-                     decimate=options.decimate).summary()
+                     decimate=options.diagnose_decimate).summary()
     noise = s["noise_std_m"]
     verdict = s["best_effect"]
     bic = [r["delta_bic"] for r in s["ranking"] if r["effect"] == verdict]
@@ -205,7 +211,8 @@ def _diagnose(path: Path, options: BatchOptions, row: dict) -> None:
                tie_set=_joined(s["tie"]["effects"]) if s["tie"] else None,
                unexplained=(f"{s['unexplained']['residual_over_noise']:.2f} x noise: {s['unexplained']['signature']}"
                             if s["unexplained"] else None),
-               samples_used=s["data"].get("samples_used"), decimate=options.decimate)
+               samples_used=s["data"].get("samples_used"), decimate=str(options.diagnose_decimate),
+               decimation_factor=s["data"]["decimation"]["factor"])
     # the bearing coefficients of the verdict's model (the nominal fit's when the verdict is none), with std
     for col, std_col, value, std in zip(COEFFICIENT_COLUMNS, COEFFICIENT_STD_COLUMNS,
                                         s["coefficients_verdict"].values(), s["coefficients_verdict_std"].values()):

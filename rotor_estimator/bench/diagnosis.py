@@ -64,13 +64,16 @@ def write_sets(out_dir: str | Path, n_cases: int, seed: int, *, generator: str =
     return labels
 
 
-def results_dir_name(decimate: int = 1) -> str:
-    """The directory of a set's kept results: ``results``, or ``results_decimate<q>`` for the diagnoses of the
-    records decimated by ``q`` (:func:`.diagnosis.decimation.decimated`), so both rates of one set are kept apart."""
+def results_dir_name(decimate: int | str = "auto") -> str:
+    """The directory of a set's kept results by the diagnosis's ``decimate``: ``results_auto`` (the default),
+    ``results`` for the full rate (1, the default before), ``results_decimate<q>`` for the records decimated by
+    ``q`` (:func:`.diagnosis.decimation.decimated`), so the rates of one set are kept apart."""
+    if decimate == "auto":
+        return "results_auto"
     return "results" if decimate == 1 else f"results_decimate{int(decimate)}"
 
 
-def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic, decimate: int = 1) -> dict:
+def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic, decimate: int | str = "auto") -> dict:
     """Diagnose one case directory (labels never read here); ``clock`` (seconds) times it and its stages;
     ``decimate``: the diagnosis's own (``diagnose(..., decimate=...)``)."""
     import warnings
@@ -431,7 +434,7 @@ def _format_one(s: dict) -> str:
     return "\n".join(out)
 
 
-def diagnose_and_keep(case_dir: str, results_dir: str, decimate: int = 1) -> dict:
+def diagnose_and_keep(case_dir: str, results_dir: str, decimate: int | str = "auto") -> dict:
     """:func:`diagnose_case`, its result also written to ``results_dir/<case>.json`` (atomically: a run
     stopped mid-write leaves no half file, and the case is diagnosed again on resume)."""
     import os
@@ -457,7 +460,7 @@ def kept_results(results_dir: Path, case_dirs: list[str]) -> dict[str, dict]:
     return kept
 
 
-def score_sets(set_dirs: list[str | Path], decimate: int = 1) -> dict:
+def score_sets(set_dirs: list[str | Path], decimate: int | str = "auto") -> dict:
     """Score the kept results of several blind sets together (e.g. two seeds of one generator): case ids are
     prefixed with their set's directory name, ``cases_in_set`` counts every case of every set (the score says
     PARTIAL when some are not diagnosed yet), and each generator is scored apart. With one set the ids are
@@ -488,7 +491,7 @@ def score_sets(set_dirs: list[str | Path], decimate: int = 1) -> dict:
 
 def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, *, jobs: int = 2,
         use_ross: bool = True, progress=None, generator: str = "own", generate: bool = True,
-        on_diagnosed=None, decimate: int = 1) -> dict:
+        on_diagnosed=None, decimate: int | str = "auto") -> dict:
     """Generate (``generator``: own, independent or both; ``generate=False`` diagnoses the set already in
     ``out_dir``, skipping the cases with a kept result), diagnose (``jobs`` processes; ``on_diagnosed(done,
     total)`` after each case; ``decimate``: the diagnosis's, its results kept apart by :func:`results_dir_name`),

@@ -48,6 +48,18 @@ seed = int_in_range(0, SEED_MAX, "a seed")
 passes = int_in_range(1, PASSES_MAX, "the number of passes")
 #: A count that must be at least 1 (``--samples``, ``--runs``...).
 positive_int = int_in_range(1, None, "a positive count")
+
+
+def decimation(text: str) -> int | str:
+    """``--decimate``: ``auto`` or a positive integer factor."""
+    if text.strip() == "auto":
+        return "auto"
+    try:
+        return positive_int(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected auto or a positive integer factor, got {text!r}") from None
+
+
 #: A count that may be 0 (``--burn-in``).
 non_negative_int = int_in_range(0, None, "a count")
 

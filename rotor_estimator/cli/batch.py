@@ -81,11 +81,11 @@ def add_parser(subparsers: Any) -> None:
         if name == "diagnose":
             p.add_argument("--passes", type=cli_types.passes, default=2,
                            help="EKF passes of the nominal fit (default 2)")
-            p.add_argument("--decimate", type=cli_types.positive_int, default=1, metavar="Q",
-                           help="diagnose each recording low-pass filtered and decimated by Q, as `diagnose "
-                                "--decimate` (default 1); the table's decimate column says at which factor")
+            p.add_argument("--decimate", type=cli_types.decimation, default="auto", metavar="Q|auto",
+                           help="as `diagnose --decimate` (default auto); the table's decimate column says what was "
+                                "asked, decimation_factor the factor used")
         else:
-            p.set_defaults(passes=2, decimate=1)
+            p.set_defaults(passes=2, decimate=None)
         if name == "identify":
             p.add_argument("--method", default="auto", help="auto (batch-ml), batch-ml, ekf+rts, ekf, ukf")
         else:

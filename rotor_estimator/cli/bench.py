@@ -181,9 +181,9 @@ def add_parser(subparsers: Any) -> None:
     b.add_argument("--score-only", action="store_true",
                    help="with --set: score the cases diagnosed so far (results/ of each set, pooled), diagnose none; "
                         "a rerun without it resumes the others")
-    b.add_argument("--decimate", type=cli_types.positive_int, default=1, metavar="Q",
-                   help="diagnose each record low-pass filtered and decimated by Q (`diagnose --decimate`); the "
-                        "results are kept in results_decimate<Q>/ of each set, apart from the full rate's (default 1)")
+    b.add_argument("--decimate", type=cli_types.decimation, default="auto", metavar="Q|auto",
+                   help="the diagnosis's --decimate (default auto, as `diagnose`); the results are kept apart by it: "
+                        "results_auto/, results/ for 1 (the full rate), results_decimate<Q>/")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_diagnosis)
 

@@ -76,10 +76,11 @@ def add_parser(subparsers) -> None:
     p.add_argument("--report", metavar="DIR", default=None, help="write report.md, summary.json and PNGs to DIR")
     p.add_argument("--json", action="store_true", help="print the JSON summary")
     p.add_argument("--passes", type=cli_types.passes, default=2, help="EKF passes of the nominal fit (default 2)")
-    p.add_argument("--decimate", type=cli_types.positive_int, default=1, metavar="Q",
-                   help="low-pass filter the record and keep every Q-th sample before diagnosing (fewer samples, the "
-                        "same band up to 0.45 of the new rate; refused when 10x the running speed is above it); "
-                        "default 1, the record as it is")
+    p.add_argument("--decimate", type=cli_types.decimation, default="auto", metavar="Q|auto",
+                   help="low-pass filter the record and keep every Q-th sample before the fits (fewer samples, the "
+                        "same band up to 0.45 of the new rate; a factor putting 10x the running speed above it is "
+                        "refused); default auto: 2 where the speed allows it and the filter's edges are at most 10 %% "
+                        "of the record and hold no impact and no transient, else 1; 1 keeps the record's rate")
     p.set_defaults(func=cmd_diagnose)
 
 

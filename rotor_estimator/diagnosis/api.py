@@ -31,8 +31,9 @@ from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_con
 UNEXPLAINED_RATIO = 1.2
 
 # 2: decision_rule.held_out_no_worse_than_nominal and held_out_tolerance; 3: data;
-# 4: verdict_set, tie, unexplained, provenance, finding, the table's coefficients_std
-SCHEMA_VERSION = 5
+# 4: verdict_set, tie, unexplained, provenance, finding, the table's coefficients_std; 6: data.decimation always,
+# gap_ratio_before, and the gap figures (residual RMS, noise, shrink) at the record's rate when it was decimated
+SCHEMA_VERSION = 6
 
 NO_IMPACT_WARNING = ("no impact in the record: the bearing coefficients are then fitted to the synchronous "
                      "response alone and absorb most effects (unbalance, keyphasor offset, runout, probe gain, "
@@ -52,6 +53,28 @@ class Diagnosis:
     data: dict
     #: Where the record came from (a bag or file path; the recording's ``meta['source']`` by default).
     source: str | None = None
+    #: (4,) noise std per channel (m) of the record at its own rate when the fits ran on it decimated
+    #: (:func:`record_rate_noise_std_m`), else None: the summary's gap figures refer to the record's rate.
+    record_noise_std_m: np.ndarray | None = None
+
+    def _noise_offset_m2(self) -> np.ndarray:
+        """(4,) what the record's rate adds to each channel's residual power over the fit rate's: the noise
+        outside the kept band (the effect's and the misfit's power is in it), zero without decimation."""
+        if self.record_noise_std_m is None:
+            return np.zeros(4)
+        return self.record_noise_std_m ** 2 - self.ctx.noise_std_m ** 2
+
+    def at_record_rate_m(self, rms_m: float | np.ndarray) -> float | np.ndarray:
+        """A residual RMS of the fits (all channels, or per channel) as the record's own rate has it."""
+        offset = self._noise_offset_m2()
+        rms = np.asarray(rms_m, float)
+        out = np.sqrt(np.maximum(rms ** 2 + (offset if rms.ndim else offset.mean()), 0.0))
+        return out if rms.ndim else float(out)
+
+    @property
+    def noise_std_m(self) -> np.ndarray:
+        """(4,) noise std per channel (m) at the record's rate."""
+        return self.ctx.noise_std_m if self.record_noise_std_m is None else self.record_noise_std_m
 
     @property
     def best_effect(self) -> str:
@@ -106,7 +129,7 @@ class Diagnosis:
         ctx = self.ctx
         pred = self.after_fit.prediction_m if self.after_fit else self.nominal_prediction_m
         e = (ctx.y_m - pred)[ctx.mask]
-        ratio = float(np.sqrt(np.mean(e ** 2) / np.mean(ctx.noise_std_m ** 2)))
+        ratio = float(np.sqrt((np.mean(e ** 2) + self._noise_offset_m2().mean()) / np.mean(self.noise_std_m ** 2)))
         if ratio < UNEXPLAINED_RATIO:
             return None
         b = budget(ctx.t_s[ctx.mask], e, ctx.shaft.angle_rad[ctx.mask], ctx.shaft.speed_rad_s[ctx.mask],
@@ -162,8 +185,10 @@ class Diagnosis:
 
     def summary(self) -> dict:
         ctx, rk = self.ctx, self.ranking
-        before = _rms(ctx.y_m - self.nominal_prediction_m, ctx.mask)
-        after = _rms(ctx.y_m - self.after_fit.prediction_m, ctx.mask) if self.after_fit else before
+        # the gap figures at the record's rate (the fits' rate when it was decimated has less noise per sample)
+        before = self.at_record_rate_m(_rms(ctx.y_m - self.nominal_prediction_m, ctx.mask))
+        after = (self.at_record_rate_m(_rms(ctx.y_m - self.after_fit.prediction_m, ctx.mask)) if self.after_fit
+                 else before)
         best = rk.best
         top2 = [f.name for f in rk.singles[:2]]
         final_row = self.verdict_row()
@@ -195,12 +220,14 @@ class Diagnosis:
             "unexplained": self.unexplained(),
             "residual_rms_before": float(before),
             "residual_rms_after": float(after),
-            "residual_rms_before_per_channel_m": dict(zip(CHANNELS, _per_channel(ctx.y_m - self.nominal_prediction_m,
-                                                                                   ctx.mask))),
-            "residual_rms_after_per_channel_m": dict(zip(CHANNELS, _per_channel(
-                ctx.y_m - (self.after_fit.prediction_m if self.after_fit else self.nominal_prediction_m), ctx.mask))),
+            "residual_rms_before_per_channel_m": dict(zip(CHANNELS, map(float, self.at_record_rate_m(_per_channel(
+                ctx.y_m - self.nominal_prediction_m, ctx.mask))))),
+            "residual_rms_after_per_channel_m": dict(zip(CHANNELS, map(float, self.at_record_rate_m(_per_channel(
+                ctx.y_m - (self.after_fit.prediction_m if self.after_fit else self.nominal_prediction_m),
+                ctx.mask))))),
             "shrink_ratio": float(before / after) if after > 0 else 1.0,
-            "noise_std_m": float(np.sqrt(np.mean(ctx.noise_std_m ** 2))),
+            "noise_std_m": float(np.sqrt(np.mean(self.noise_std_m ** 2))),
+            "gap_ratio_before": float(before / np.sqrt(np.mean(self.noise_std_m ** 2))),
             "coefficients_ekf": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, ctx.coefficients_ekf))),
             "coefficients_nominal": dict(zip(COEFFICIENT_NAMES_WITH_UNITS, map(float, ctx.coefficients))),
             # the bearing coefficients of the verdict's model (the nominal fit's when the verdict is none)
@@ -348,15 +375,16 @@ def analysis_window(recording: RigRecording, max_s: float = MAX_FIT_WINDOW_S) ->
 @single_threaded_blas()  # small matrices: threaded BLAS only oversubscribes (2.3x slower measured)
 def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *, passes: int = 2,
              library: tuple[Effect, ...] = LIBRARY, max_fit_window_s: float = MAX_FIT_WINDOW_S,
-             decimate: int = 1, progress=None) -> Diagnosis:
+             decimate: int | str = "auto", progress=None) -> Diagnosis:
     """Fit the nominal model, budget its residual, rank the candidate effects, tabulate before/after.
 
     A record longer than ``max_fit_window_s`` is diagnosed on one window of it (see
-    :func:`analysis_window`); ``summary()['data']['analysis_window']`` says which. ``decimate`` > 1: that window
-    low-pass filtered and decimated by that factor first (:func:`.decimation.decimated`; fewer samples, the same
-    band and information on the parameters), ``summary()['data']['decimation']`` says how. ``progress``, when
-    given, is called with one line of text at each stage."""
-    from rotor_estimator.diagnosis.decimation import decimated
+    :func:`analysis_window`); ``summary()['data']['analysis_window']`` says which. ``decimate``: that window is
+    low-pass filtered and decimated by this factor first (:func:`.decimation.decimated`; fewer samples, the same
+    band and information on the parameters); ``"auto"`` picks it (:func:`.decimation.automatic_factor`: 2 where
+    the speed and the record allow, else 1), ``1`` keeps the record's rate; ``summary()['data']['decimation']``
+    says which and why. ``progress``, when given, is called with one line of text at each stage."""
+    from rotor_estimator.diagnosis.decimation import decimated, resolved_factor
 
     full_n = len(recording)
     start, stop, why = analysis_window(recording, max_fit_window_s)
@@ -367,8 +395,12 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
                   "record_s": float(t[-1] - t[0]), "rule": why}
         recording = recording.slice(start, stop)
     undecimated_n = len(recording)
-    recording = decimated(recording, decimate)
+    factor, factor_why = resolved_factor(recording, decimate)
+    record_rate = recording
+    recording = decimated(recording, factor)
     say = progress or (lambda text: None)
+    if factor > 1:
+        say(f"decimated by {factor} ({factor_why}): {len(recording)} of {undecimated_n} samples")
     say(f"nominal fit: EKF ({passes} passes), then output-error refinement of the 8 coefficients")
     ctx = build_context(recording, rig, config, passes=passes)
     sol0, _, ho0 = nominal_solution(ctx)
@@ -413,9 +445,9 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     data = data_accounting(recording, ctx)
     data["nominal_slowest_decay_1_per_s"], stability_warnings = nominal_stability(ctx)
     data["warnings"] += stability_warnings
-    if decimate != 1:
-        data["decimation"] = {**recording.meta["decimation"], "samples_before": undecimated_n,
-                              "sample_rate_hz": float(1.0 / np.median(np.diff(recording.time_s())))}
+    data["decimation"] = {**(recording.meta["decimation"] if factor > 1 else {"factor": 1}), "requested": decimate,
+                          "why": factor_why, "samples_before": undecimated_n,
+                          "sample_rate_hz": float(1.0 / np.median(np.diff(recording.time_s())))}
     if window is not None:
         data["analysis_window"] = window
         data["samples_in_record"] = full_n
@@ -423,8 +455,13 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
                                 f"{window['start_s']:.3f}-{window['stop_s']:.3f} s, {window['rule']} (memory and time "
                                 f"bound); diagnose other spans by cutting the record")
     source = recording.meta.get("source") if isinstance(getattr(recording, "meta", None), dict) else None
+    record_noise = record_rate_noise_std_m(record_rate, ctx.mean_speed_rad_s) if factor > 1 else None
+    if record_noise is not None:  # the fits' figures, at the rate they ran at
+        data["decimation"]["noise_std_m_at_fit_rate"] = float(np.sqrt(np.mean(ctx.noise_std_m ** 2)))
+        data["decimation"]["noise_std_m_at_record_rate"] = float(np.sqrt(np.mean(record_noise ** 2)))
     found = Diagnosis(ctx=ctx, ranking=rk, where=where, innovations=innov, nominal_prediction_m=sol0.prediction_m,
-                      table=table, data=data, source=None if source is None else str(source))
+                      table=table, data=data, source=None if source is None else str(source),
+                      record_noise_std_m=record_noise)
     if rk.best is not None:
         data["warnings"] += verdict_stability_warnings(found.verdict_row(), fitted_span_s(ctx))
         verdict = rk.second or rk.best
@@ -432,6 +469,18 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
         k = rk.best.n_params + (rk.second.n_params if rk.second else 0)
         data["warnings"] += prior_driven_warnings(rk.nominal_rss_m2, verdict.rss_m2, verdict.n_obs, k, names)
     return found
+
+
+def record_rate_noise_std_m(recording: RigRecording, mean_speed_rad_s: float) -> np.ndarray:
+    """(4,) noise std per channel (m) of ``recording`` at its own rate, read as the fits read theirs (the band
+    above 0.3 of the rate or 10x the speed, :func:`.context.noise_std_from_spectrum`): the rotor's response is
+    far below it. Rows with a non-finite probe sample are left out."""
+    from rotor_estimator.diagnosis.context import noise_std_from_spectrum
+
+    y = recording.probes_m[np.all(np.isfinite(recording.probes_m), axis=1)]
+    rate_hz = 1.0 / (float(np.median(np.diff(recording.stamps_ns))) * 1e-9)
+    low_hz = max(0.3 * rate_hz, 10.0 * mean_speed_rad_s / (2.0 * np.pi))
+    return noise_std_from_spectrum(y - y.mean(axis=0), rate_hz, low_hz)
 
 
 def prior_driven_warnings(nominal_rss_m2: float, verdict_rss_m2: float, n_obs: int, n_params: int,

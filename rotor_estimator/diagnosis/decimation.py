@@ -36,6 +36,16 @@ FLAT_FRACTION = 0.45
 NOISE_BAND_ORDER = 10.0
 #: Samples a decimated record keeps at least (beyond the dropped edges).
 MIN_KEPT_SAMPLES = 256
+#: The largest factor ``decimate="auto"`` picks: the one checked on the blind sets (README, "Decimation").
+AUTO_MAX_FACTOR = 2
+#: ``decimate="auto"`` keeps the full rate when the filter's dropped edges would be more than this share of the
+#: record (a short record loses more by its edges than it gains in time; own seed 2041's 0.25-0.28 s records,
+#: 7-8 % dropped at a factor of 2, kept every benchmark figure).
+AUTO_MAX_EDGE_FRACTION = 0.10
+#: ``decimate="auto"`` keeps the full rate when an edge the filter drops differs from the record a revolution on
+#: by more than this over the noise (:func:`edge_transient_ratio`): a transient there (a start from rest) carries
+#: much of a record's information without an impact.
+AUTO_MAX_EDGE_TRANSIENT_RATIO = 1.5
 
 
 def half_band_taps(factor: int) -> np.ndarray:
@@ -51,6 +61,94 @@ def largest_factor(sample_rate_hz: float, max_speed_hz: float, limit: int = 8) -
     flat band (``FLAT_FRACTION`` of the new rate): the rotor's harmonics and the noise band the diagnosis reads."""
     q = int(np.floor(FLAT_FRACTION * sample_rate_hz / (NOISE_BAND_ORDER * max(max_speed_hz, 1e-9))))
     return max(1, min(q, int(limit)))
+
+
+def automatic_factor(recording: RigRecording) -> tuple[int, str]:
+    """The factor ``decimate="auto"`` (the diagnosis's default) picks, and why: the largest of at most
+    ``AUTO_MAX_FACTOR`` that keeps ten times the running speed (from the keyphasor) in the flat band, while the
+    filter's dropped edges are at most ``AUTO_MAX_EDGE_FRACTION`` of the record and hold neither an impact force
+    (the impact response carries most of what a record says on the coefficients) nor a transient
+    (:func:`edge_transient_ratio`; a start from rest). 1 for a record without keyphasor pulses (its band cannot
+    be checked)."""
+    n = len(recording)
+    fastest_hz = _fastest_speed_hz(recording)
+    if fastest_hz is None:
+        return 1, "no keyphasor pulses to check the band against"
+    period_s = float(np.median(np.diff(recording.stamps_ns))) * 1e-9
+    q = largest_factor(1.0 / period_s, fastest_hz, limit=AUTO_MAX_FACTOR)
+    why = f"10x the speed ({10 * fastest_hz:.0f} Hz) needs the full rate"
+    for factor in range(q, 1, -1):
+        half = HALF_TAPS_PER_FACTOR * factor
+        if 2 * half > AUTO_MAX_EDGE_FRACTION * n:
+            why = f"a factor of {factor} would drop {2 * half} of the {n} samples at the filter's edges"
+        elif np.any(recording.impact_force_n[:half] != 0.0) or np.any(recording.impact_force_n[n - half:] != 0.0):
+            why = f"a factor of {factor} would drop an impact in the filter's edges"
+        elif not np.isfinite(ratio := edge_transient_ratio(recording, half)):
+            why = (f"a factor of {factor}: the filter's edges cannot be checked for a transient (non-finite probe "
+                   "samples there, or too short a record)")
+        elif ratio > AUTO_MAX_EDGE_TRANSIENT_RATIO:
+            why = (f"a factor of {factor} would drop a transient in the filter's edges (the edges differ from the "
+                   f"record a revolution on by {ratio:.1f}x the noise: a start from rest, a speed change)")
+        else:
+            return factor, (f"10x the speed ({10 * fastest_hz:.0f} Hz) stays below {FLAT_FRACTION:g} of the new "
+                            f"rate")
+    return 1, why
+
+
+def edge_transient_ratio(recording: RigRecording, half: int) -> float:
+    """How far the first and last ``half`` samples are from periodic: the larger over the two edges of the RMS of
+    each edge minus the record a whole number of mean revolutions on (back, for the end edge), interpolated
+    between samples, over the RMS that difference has on white noise alone (sqrt(2) x the noise floor read above
+    0.3 of the rate, as the diagnosis reads it). About 1 for a steady record; a start from rest, a speed change or
+    a decaying transient give more. ``inf`` without two keyphasor pulses or samples enough."""
+    from scipy.interpolate import CubicSpline
+
+    from rotor_estimator.diagnosis.context import noise_std_from_spectrum
+
+    y = recording.probes_m
+    n = len(recording)
+    periods_ns = np.diff(recording.pulse_stamps_ns)
+    if periods_ns.size == 0:
+        return float("inf")
+    step_ns = float(np.median(np.diff(recording.stamps_ns)))
+    rev = float(np.median(periods_ns)) / step_ns          # samples per revolution
+    lag = rev * np.ceil((half + 1) / rev)                  # whole revolutions, past the edge
+    if n < 2 * half + lag + 8:
+        return float("inf")
+
+    def shifted(first: int, shift: float) -> np.ndarray:
+        """y at samples first .. first + half - 1 moved by ``shift`` samples (cubic spline of the span)."""
+        lo = int(np.floor(first + shift)) - 2
+        span = y[lo:lo + half + 6]
+        return CubicSpline(np.arange(lo, lo + span.shape[0]), span, axis=0)(np.arange(first, first + half) + shift)
+
+    head = y[:half] - shifted(0, lag)
+    tail = y[n - half:] - shifted(n - half, -lag)
+    finite = np.all(np.isfinite(y), axis=1)
+    if not (np.all(np.isfinite(head)) and np.all(np.isfinite(tail))) or finite.sum() < 64:
+        return float("inf")
+    rate_hz = 1e9 / step_ns
+    sigma = noise_std_from_spectrum(y[finite] - y[finite].mean(axis=0), rate_hz, 0.3 * rate_hz)
+    floor = np.sqrt(2.0 * np.mean(sigma ** 2))
+    return float(max(np.sqrt(np.mean(head ** 2)), np.sqrt(np.mean(tail ** 2))) / max(floor, 1e-300))
+
+
+def resolved_factor(recording: RigRecording, decimate: int | str) -> tuple[int, str]:
+    """``decimate`` as a factor and why: ``"auto"`` through :func:`automatic_factor`, an integer as given (checked
+    by :func:`decimated`)."""
+    if isinstance(decimate, str):
+        if decimate != "auto":
+            raise InputError(f"decimate: 'auto' or a positive integer, got {decimate!r}")
+        return automatic_factor(recording)
+    return decimate, "as asked"
+
+
+def _fastest_speed_hz(recording: RigRecording) -> float | None:
+    """The running speed near its highest, Hz: from the 5th percentile of the revolution periods (a jittered
+    pulse does not set it); None without two pulses."""
+    periods_s = np.diff(recording.pulse_stamps_ns) * 1e-9
+    periods_s = periods_s[periods_s > 0]
+    return float(1.0 / np.percentile(periods_s, 5)) if periods_s.size else None
 
 
 def decimated(recording: RigRecording, factor: int) -> RigRecording:
@@ -69,11 +167,8 @@ def decimated(recording: RigRecording, factor: int) -> RigRecording:
         raise InputError(f"decimate: a factor of {factor} needs at least {2 * half + factor * MIN_KEPT_SAMPLES} "
                          f"samples (the filter's {half} at each end are dropped), the record has {n}")
     period_s = float(np.median(np.diff(recording.stamps_ns))) * 1e-9
-    pulses_s = np.diff(recording.pulse_stamps_ns) * 1e-9
-    if pulses_s.size:
-        # the running speed near its highest (the 5th percentile of the revolution periods: a jittered pulse
-        # does not set it)
-        fastest_hz = float(1.0 / np.percentile(pulses_s[pulses_s > 0], 5)) if np.any(pulses_s > 0) else 0.0
+    fastest_hz = _fastest_speed_hz(recording)
+    if fastest_hz is not None:
         allowed = largest_factor(1.0 / period_s, fastest_hz, limit=factor)
         if allowed < factor:
             raise InputError(

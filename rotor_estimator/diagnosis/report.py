@@ -179,12 +179,21 @@ def markdown(d: Diagnosis, summary: dict) -> str:
     lines.append("")
     lines.append(f"Residual RMS {_fmt_um(summary['residual_rms_before'])} um before, "
                  f"{_fmt_um(summary['residual_rms_after'])} um after; shrink ratio {summary['shrink_ratio']:.2f}; "
-                 f"noise {_fmt_um(summary['noise_std_m'])} um (gap ratio {w['gap_ratio']:.2f}).")
+                 f"noise {_fmt_um(summary['noise_std_m'])} um (gap ratio {summary['gap_ratio_before']:.2f}).")
     data = summary["data"]
     lines.append("")
     lines.append(f"Data: {data['samples_used']} of {data['samples']} samples used ({data['non_finite_probe_samples']} "
                  f"non-finite, {data['outside_tachometer_span_samples']} outside the keyphasor's span, "
                  f"{data['warm_up_samples']} warm-up), {data['impacts']} impact(s).")
+    dec = data.get("decimation")
+    if dec and dec["factor"] > 1:
+        lines.append(f"Decimated by {dec['factor']} to {dec['sample_rate_hz']:.0f} Hz before the fits "
+                     f"({dec['why']}; {dec['dropped_edge_samples']} samples dropped at each end by the filter; "
+                     "`--decimate 1` keeps the full rate). The residual RMS, noise and gap ratio above are at the "
+                     f"record's rate (noise {_fmt_um(dec['noise_std_m_at_record_rate'])} um); the tables below "
+                     f"are at the fits' rate (noise {_fmt_um(dec['noise_std_m_at_fit_rate'])} um).")
+    elif dec:
+        lines.append(f"Full rate, {dec['sample_rate_hz']:.0f} Hz ({dec['why']}).")
     for text in data["warnings"]:
         lines += ["", f"> **Warning:** {text}."]
     lines += ["", "## 1. Where the gap lies", ""]

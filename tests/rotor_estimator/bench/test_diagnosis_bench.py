@@ -113,7 +113,7 @@ def test_score_only_scores_the_kept_results_and_says_the_run_is_partial(tmp_path
 
     import pytest
 
-    from rotor_estimator.bench.diagnosis import kept_results, score_sets
+    from rotor_estimator.bench.diagnosis import kept_results, results_dir_name, score_sets
     from rotor_estimator.core.errors import InputError
 
     for cid in ("case_000", "case_001", "case_002"):
@@ -121,18 +121,18 @@ def test_score_only_scores_the_kept_results_and_says_the_run_is_partial(tmp_path
     (tmp_path / "labels").mkdir()
     (tmp_path / "labels" / "labels.json").write_text(json.dumps(
         {"case_000": _label([]), "case_001": _label(["probe_runout"]), "case_002": _label(["pedestal"])}))
-    (tmp_path / "results").mkdir()
+    (tmp_path / results_dir_name()).mkdir()
     with pytest.raises(InputError, match="no case diagnosed"):
         score_sets([tmp_path])
-    (tmp_path / "results" / "case_000.json").write_text(json.dumps(
+    (tmp_path / results_dir_name() / "case_000.json").write_text(json.dumps(
         {"case": "case_000", "best_effect": "none", "second_effect": "none", "top_two": ["none"], "before": 1e-6,
          "shrink_ratio": 1.0, "seconds": 3.0}))
-    (tmp_path / "results" / "case_001.json").write_text(json.dumps(
+    (tmp_path / results_dir_name() / "case_001.json").write_text(json.dumps(
         {"case": "case_001", "best_effect": "probe_runout", "second_effect": "none", "top_two": ["probe_runout"],
          "before": 3e-6, "shrink_ratio": 3.0, "seconds": 5.0}))
-    (tmp_path / "results" / "case_002.json").write_text('{"case": "case_0')  # cut mid-write
+    (tmp_path / results_dir_name() / "case_002.json").write_text('{"case": "case_0')  # cut mid-write
     dirs = sorted(str(p) for p in (tmp_path / "cases").iterdir())
-    assert sorted(kept_results(tmp_path / "results", dirs)) == ["case_000", "case_001"]
+    assert sorted(kept_results(tmp_path / results_dir_name(), dirs)) == ["case_000", "case_001"]
     s = score_sets([tmp_path])
     assert (s["cases"], s["cases_in_set"], s["top1"], s["false_alarms"]) == (2, 3, 1.0, 0)
     assert "PARTIAL: 2 of the set's 3 cases" in format_score(s)
@@ -143,7 +143,7 @@ def test_two_sets_are_pooled_with_their_cases_kept_apart(tmp_path):
     name, and the sets' sizes add up (the undiagnosed case makes the pooled score partial)."""
     import json
 
-    from rotor_estimator.bench.diagnosis import score_sets
+    from rotor_estimator.bench.diagnosis import results_dir_name, score_sets
 
     for name, effect, verdict in (("seed_a", ["pedestal"], "pedestal"), ("seed_b", ["pedestal"], "probe_runout")):
         for cid in ("case_000", "case_001"):
@@ -151,8 +151,8 @@ def test_two_sets_are_pooled_with_their_cases_kept_apart(tmp_path):
         (tmp_path / name / "labels").mkdir()
         (tmp_path / name / "labels" / "labels.json").write_text(json.dumps(
             {"case_000": _label(effect), "case_001": _label([])}))
-        (tmp_path / name / "results").mkdir()
-        (tmp_path / name / "results" / "case_000.json").write_text(json.dumps(
+        (tmp_path / name / results_dir_name()).mkdir()
+        (tmp_path / name / results_dir_name() / "case_000.json").write_text(json.dumps(
             {"case": "case_000", "best_effect": verdict, "second_effect": "none", "top_two": [verdict],
              "before": 2e-6, "shrink_ratio": 2.0, "seconds": 4.0}))
     s = score_sets([tmp_path / "seed_a", tmp_path / "seed_b"])
@@ -164,7 +164,7 @@ def test_two_sets_are_pooled_with_their_cases_kept_apart(tmp_path):
 def test_a_decimated_diagnosis_is_asked_for_and_kept_and_scored_apart_from_the_full_rates(tmp_path, monkeypatch):
     """``bench diagnosis --decimate Q``: each case's diagnosis is asked for at that factor, its result is kept in
     ``results_decimate<Q>/`` (the full rate's ``results/`` untouched), and ``score_sets(..., decimate=Q)`` scores
-    those results alone."""
+    those results alone; the default (auto) has its own ``results_auto/``."""
     import json
     from types import SimpleNamespace
 
@@ -194,12 +194,13 @@ def test_a_decimated_diagnosis_is_asked_for_and_kept_and_scored_apart_from_the_f
         {"case": "case_000", "best_effect": "probe_runout", "second_effect": "none", "top_two": ["probe_runout"],
          "before": 2e-6, "shrink_ratio": 2.0, "seconds": 4.0}))
     assert bench.results_dir_name(1) == "results" and bench.results_dir_name(2) == "results_decimate2"
+    assert bench.results_dir_name() == bench.results_dir_name("auto") == "results_auto"
     (tmp_path / "results_decimate2").mkdir()
     bench.diagnose_and_keep(str(tmp_path / "cases" / "case_000"), str(tmp_path / "results_decimate2"), decimate=2)
     assert asked == [2]
     monkeypatch.undo()  # scoring reads the (absent) rig files itself
     assert bench.score_sets([tmp_path], decimate=2)["top1"] == 1.0   # the decimated diagnosis: pedestal
-    assert bench.score_sets([tmp_path])["top1"] == 0.0               # the full rate's: runout, kept as it was
+    assert bench.score_sets([tmp_path], decimate=1)["top1"] == 0.0   # the full rate's: runout, kept as it was
 
 
 def test_a_case_whose_diagnosis_raises_is_kept_as_an_error_and_scored_as_a_miss(tmp_path, monkeypatch):

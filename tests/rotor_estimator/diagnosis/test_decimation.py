@@ -8,8 +8,10 @@ import pytest
 
 from rotor_estimator.core.errors import InputError
 from rotor_estimator.core.recording import RigRecording
-from rotor_estimator.diagnosis.decimation import (HALF_TAPS_PER_FACTOR, decimated, half_band_taps,
-                                                  largest_factor)
+from rotor_estimator.diagnosis.decimation import (AUTO_MAX_EDGE_TRANSIENT_RATIO, AUTO_MAX_FACTOR,
+                                                  HALF_TAPS_PER_FACTOR, automatic_factor, decimated,
+                                                  edge_transient_ratio, half_band_taps, largest_factor,
+                                                  resolved_factor)
 
 FS_HZ = 20000.0
 
@@ -123,3 +125,76 @@ def test_a_decimated_record_carries_the_same_information_on_the_parameters():
     assert np.all(np.abs(full.lin - half.lin) < 3.0 * np.hypot(full.lin_std, half.lin_std))
     ratio = half.lin_std / full.lin_std
     assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
+
+
+def test_auto_picks_at_most_two_where_the_speed_the_length_and_the_impact_allow():
+    """``decimate="auto"``: a 0.5 s record at 20 kHz of a 200 Hz rotor gets 2 (4 would pass the band, the cap is
+    the factor checked on the blind sets); a 500 Hz rotor (5 kHz above 0.45 x 10 kHz) keeps the full rate; a 0.15 s
+    record too (its filter edges would be 13 % of it); so does one with an impact inside the dropped edges, and one
+    without keyphasor pulses (its band cannot be checked). Each says why."""
+    n = 10000
+    assert AUTO_MAX_FACTOR == 2 and largest_factor(FS_HZ, 200.0) == 4
+    q, why = automatic_factor(_record(np.zeros((n, 4)), speed_hz=200.0))
+    assert q == 2 and "below 0.45 of the new rate" in why
+    q, why = automatic_factor(_record(np.zeros((n, 4)), speed_hz=500.0))
+    assert q == 1 and "needs the full rate" in why
+    q, why = automatic_factor(_record(np.zeros((3000, 4))))
+    assert q == 1 and "drop 400 of the 3000 samples" in why
+    for at in (150, n - 150):
+        force = np.zeros((n, 2))
+        force[at] = [100.0, 0.0]
+        q, why = automatic_factor(_record(np.zeros((n, 4)), force))
+        assert q == 1 and "impact" in why
+    force = np.zeros((n, 2))
+    force[250] = [100.0, 0.0]  # just inside the kept span
+    assert automatic_factor(_record(np.zeros((n, 4)), force))[0] == 2
+    no_pulses = _record(np.zeros((n, 4)))
+    no_pulses = RigRecording(no_pulses.stamps_ns, no_pulses.probes_m, no_pulses.pulse_stamps_ns[:1],
+                             no_pulses.impact_force_n)
+    assert automatic_factor(no_pulses) == (1, "no keyphasor pulses to check the band against")
+
+
+def test_resolved_factor_takes_auto_or_a_factor_and_names_decimate_otherwise():
+    """An integer passes through (checked later by ``decimated``); ``"auto"`` is resolved; other text is refused."""
+    rec = _record(np.zeros((10000, 4)))
+    assert resolved_factor(rec, 3) == (3, "as asked") and resolved_factor(rec, "auto")[0] == 2
+    with pytest.raises(InputError, match="decimate: 'auto' or a positive integer, got 'fast'"):
+        resolved_factor(rec, "fast")
+
+
+def _rotor_response(n: int, speed_hz: float, noise_std_m: float, seed: int, rise_s: float | None = None):
+    """1X and 2X of a rotor at ``speed_hz`` with white noise; ``rise_s``: starting from rest, the orbit growing
+    with that time constant (a start transient)."""
+    t = np.arange(n) / FS_HZ
+    w = 2 * np.pi * speed_hz
+    orbit = np.stack([10e-6 * np.cos(w * t + k) + 2e-6 * np.sin(2 * w * t + 2 * k) for k in range(4)], axis=1)
+    if rise_s is not None:
+        orbit *= (1.0 - np.exp(-t / rise_s))[:, None]
+    return orbit + np.random.default_rng(seed).normal(scale=noise_std_m, size=(n, 4))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_steady_record_reads_noise_at_its_edges_and_one_from_rest_a_transient(seed):
+    """``edge_transient_ratio``: a steady 1X + 2X record with 1 um noise is periodic at its edges (ratio within
+    0.8-1.2: the difference is noise alone) and is decimated by auto; the same orbit rising from rest with a
+    20 ms time constant is not periodic in its first 10 ms (ratio 2.4 here) and keeps the full rate, saying why."""
+    n = 10000
+    steady = _record(_rotor_response(n, 200.0, 1e-6, seed))
+    assert 0.8 < edge_transient_ratio(steady, 200) < 1.2
+    assert automatic_factor(steady)[0] == 2
+    from_rest = _record(_rotor_response(n, 200.0, 1e-6, seed, rise_s=0.02))
+    assert edge_transient_ratio(from_rest, 200) > 2 > AUTO_MAX_EDGE_TRANSIENT_RATIO
+    q, why = automatic_factor(from_rest)
+    assert q == 1 and "transient" in why
+
+
+def test_a_dropout_away_from_the_edges_does_not_stop_auto_and_one_in_an_edge_does():
+    """Non-finite probe samples in the middle of a steady record leave the edge check as it was (auto picks 2);
+    in the first 10 ms they make it uncheckable, and auto keeps the full rate saying so."""
+    probes = _rotor_response(10000, 200.0, 1e-6, 3)
+    probes[5000:5010, 1] = np.nan
+    assert 0.8 < edge_transient_ratio(_record(probes), 200) < 1.2
+    assert automatic_factor(_record(probes))[0] == 2
+    probes[50, 2] = np.nan
+    q, why = automatic_factor(_record(probes))
+    assert q == 1 and "cannot be checked" in why

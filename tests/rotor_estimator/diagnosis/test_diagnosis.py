@@ -186,6 +186,9 @@ def test_diagnose_command_writes_report_and_json(tmp_path, rig_file, capsys):
     for r in s["ranking_pairs"]:
         assert r["delta_bic"] == pytest.approx(s["ranking"][0]["delta_bic"] + r["delta_bic_over_top_single"], abs=0.05)
     assert "Best pairs" in (tmp_path / "rep" / "report.md").read_text()
+    # the default decimation (auto) keeps this 0.15 s record's rate, and the report says so and why
+    assert (data["decimation"]["factor"], data["decimation"]["requested"]) == (1, "auto")
+    assert "Full rate, 20000 Hz (a factor of 2 would drop 400 of the" in (tmp_path / "rep" / "report.md").read_text()
     # the benchmark keeps what it scores from this very summary: a runout label scores a top-1 hit, the 8
     # coefficients against the rig's truth, and the ranking with its parameter counts for offline re-scoring
     from rotor_estimator.bench.diagnosis import result_of_summary, score
@@ -409,6 +412,30 @@ def test_a_diagnosis_with_no_effect_to_rank_reports_the_nominal_model(rig_file, 
     assert s["best_effect"] == "none" and s["ranking"] == [] and s["residual_rms_after"] == s["residual_rms_before"]
 
 
+def test_a_decimated_diagnosis_reports_the_gap_at_the_records_rate(rig_file):
+    """The fits of a decimated record see less noise per sample (the kept band's share), so its residual over
+    noise is larger at the fits' rate (here 3.2x against 2.3x). The summary's gap figures (residual RMS before,
+    noise, gap ratio) refer to the record's own rate: a record with runout (2.3x) reads the same gap at both
+    settings within 5 %, and the fits' rate is kept in data.decimation."""
+    import rotor_estimator.diagnosis.api as api
+
+    rig = rig_file.rig
+    sim = simulate_with_effects(rig, _scenario(rig, duration_s=0.15), HiddenEffects(runout_m=2 * RUNOUT), seed=5)
+    full = api.diagnose(sim.recording, rig, rig_file.estimator, library=(), decimate=1)
+    half = api.diagnose(sim.recording, rig, rig_file.estimator, library=(), decimate=2)
+    f, h = full.summary(), half.summary()
+    assert f["gap_ratio_before"] > 2.0
+    assert h["gap_ratio_before"] == pytest.approx(f["gap_ratio_before"], rel=0.05)
+    assert h["noise_std_m"] == pytest.approx(f["noise_std_m"], rel=0.05)
+    assert h["residual_rms_before"] == pytest.approx(f["residual_rms_before"], rel=0.05)
+    for channel, rms in f["residual_rms_before_per_channel_m"].items():
+        assert h["residual_rms_before_per_channel_m"][channel] == pytest.approx(rms, rel=0.08)
+    at_fit_rate = api._rms(half.ctx.y_m - half.nominal_prediction_m, half.ctx.mask)
+    d = h["data"]["decimation"]
+    assert d["noise_std_m_at_fit_rate"] == pytest.approx(d["noise_std_m_at_record_rate"] / np.sqrt(2.0), rel=0.05)
+    assert at_fit_rate / d["noise_std_m_at_fit_rate"] > 1.25 * f["gap_ratio_before"]  # what is corrected
+
+
 def test_a_decimated_diagnosis_says_how_it_was_decimated_and_sees_the_same_noise(rig_file, short_control):
     """``diagnose(..., decimate=2)`` runs on the filtered record at half the rate and says so in its data (factor,
     taps, the edges dropped, samples before, the new rate); its noise floor is the full rate's over sqrt(2) (the
@@ -419,9 +446,11 @@ def test_a_decimated_diagnosis_says_how_it_was_decimated_and_sees_the_same_noise
     full = api.diagnose(short_control.recording, rig_file.rig, rig_file.estimator, library=())
     half = api.diagnose(short_control.recording, rig_file.rig, rig_file.estimator, library=(), decimate=2)
     d = half.summary()["data"]["decimation"]
-    assert (d["factor"], d["samples_before"]) == (2, len(short_control.recording))
+    assert (d["factor"], d["samples_before"], d["requested"]) == (2, len(short_control.recording), 2)
     assert abs(d["sample_rate_hz"] - 10000.0) < 1e-6
-    assert "decimation" not in full.summary()["data"]
+    # the default (auto) keeps this short record's rate, and says why
+    d = full.summary()["data"]["decimation"]
+    assert (d["factor"], d["requested"]) == (1, "auto") and "filter's edges" in d["why"]
     ratio = float(np.mean(half.ctx.noise_std_m) / np.mean(full.ctx.noise_std_m))
     assert abs(ratio * np.sqrt(2.0) - 1.0) < 0.05
     def nominal(d):
