@@ -475,12 +475,11 @@ def record_rate_noise_std_m(recording: RigRecording, mean_speed_rad_s: float) ->
     """(4,) noise std per channel (m) of ``recording`` at its own rate, read as the fits read theirs (the band
     above 0.3 of the rate or 10x the speed, :func:`.context.noise_std_from_spectrum`): the rotor's response is
     far below it. Rows with a non-finite probe sample are left out."""
-    from rotor_estimator.diagnosis.context import noise_std_from_spectrum
+    from rotor_estimator.diagnosis.context import noise_band_low_hz, noise_std_from_spectrum
 
     y = recording.probes_m[np.all(np.isfinite(recording.probes_m), axis=1)]
     rate_hz = 1.0 / (float(np.median(np.diff(recording.stamps_ns))) * 1e-9)
-    low_hz = max(0.3 * rate_hz, 10.0 * mean_speed_rad_s / (2.0 * np.pi))
-    return noise_std_from_spectrum(y - y.mean(axis=0), rate_hz, low_hz)
+    return noise_std_from_spectrum(y - y.mean(axis=0), rate_hz, noise_band_low_hz(rate_hz, mean_speed_rad_s))
 
 
 def prior_driven_warnings(nominal_rss_m2: float, verdict_rss_m2: float, n_obs: int, n_params: int,

@@ -81,6 +81,12 @@ def shaft_track(recording: RigRecording) -> ShaftTrack:
     return ShaftTrack(s.angle_rad, s.speed_rad_s, s.accel_rad_s2, s.valid)
 
 
+def noise_band_low_hz(rate_hz: float, mean_speed_rad_s: float) -> float:
+    """Where the noise floor is read from (up to 0.49 of the rate): 0.3 of the rate or 10x the mean speed, the
+    higher, above any rotor response."""
+    return max(0.3 * rate_hz, 10 * mean_speed_rad_s / (2 * np.pi))
+
+
 def noise_std_from_spectrum(residual_m: np.ndarray, sample_rate_hz: float, low_hz: float) -> np.ndarray:
     """Per-channel white-noise std from the mean periodogram above ``low_hz`` (E|X_k|^2/N = sigma^2)."""
     e = residual_m - residual_m.mean(axis=0)
@@ -572,7 +578,7 @@ def build_context(recording: RigRecording, rig: RigConfig, config: EstimatorConf
 
     # 2. output-error refinement (DC projected out), MAP under the coefficient prior at the noise level of
     # the record's band above any rotor response (the fits' own noise estimate needs a fit first)
-    low = max(0.3 * (1 / h), 10 * float(np.mean(shaft.speed_rad_s)) / (2 * np.pi))
+    low = noise_band_low_hz(1 / h, float(np.mean(shaft.speed_rad_s)))
     y_centred = y_clean[mask] - y_clean[mask].mean(axis=0)
     prior = coefficient_prior(config, float(np.sqrt(np.mean(noise_std_from_spectrum(y_centred, 1 / h, low) ** 2))))
     best = fit_nominal(rig, mats, t, y_clean, mask, shaft, schedule, u_s, u_z, h,
