@@ -652,6 +652,18 @@ def _successive_halving(fun, lo: np.ndarray, hi: np.ndarray, x_starts: list[np.n
 REFIT_LEDGER: ContextVar[Callable[[dict], None] | None] = ContextVar("refit_ledger", default=None)
 
 
+def single_refit_starts(ctx: FitContext, effect: Effect, nl_starts: tuple[np.ndarray, ...]) -> dict:
+    """:func:`refine`'s starts and budget for a single effect's joint refit in the search: from its first
+    pass and from the prior r0 (a large effect drags the nominal fit far from it: a 30 % probe gain error moved
+    kxx 15x, and the first pass's linearized jump can even be unstable), at each of ``nl_starts`` (the effect's
+    :meth:`.Effect.refine_starts`, or none), those from r0 too when the effect :attr:`.Effect.starts_from_prior`,
+    and its :meth:`.Effect.evidence_starts`."""
+    pairs_from_prior = tuple((ctx.prior_coefficients, p) for p in nl_starts) if effect.starts_from_prior else ()
+    return dict(extra_starts=(ctx.prior_coefficients,), nl_starts=nl_starts, start_pairs=pairs_from_prior,
+                evidence_starts=tuple(effect.evidence_starts(ctx)),
+                max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV)
+
+
 def refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectFit, ...] = (), *, why: str = "",
            **options) -> EffectFit:
     """:func:`_refine` (its keyword ``options``), reported to :data:`REFIT_LEDGER` when it is set, with ``why`` (the
@@ -1258,14 +1270,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         why = [w for w, holds in (("leader", name_rank[f.name] < REFINE_TOP and f.delta_bic > 0),
                                   ("refit always", always), ("structural starts", bool(nl_starts))) if holds]
         if why:
-            # from the prior r0 too: a large effect drags the nominal fit far from it (a 30 % probe gain
-            # error moved kxx 15x), and the first pass's linearized jump can even be unstable
-            starts = (ctx.prior_coefficients,)
-            pairs_from_prior = tuple((ctx.prior_coefficients, p) for p in nl_starts) \
-                if eff.starts_from_prior else ()
-            singles[i] = refine(ctx, eff, f, reference_bic=bic0, extra_starts=starts, nl_starts=nl_starts,
-                                start_pairs=pairs_from_prior, evidence_starts=tuple(eff.evidence_starts(ctx)),
-                                max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV, why=" + ".join(why))
+            singles[i] = refine(ctx, eff, f, reference_bic=bic0, **single_refit_starts(ctx, eff, nl_starts),
+                                why=" + ".join(why))
     # a gap: every form of the two leading effects is continued to convergence (FINAL_NFEV) before one stands
     # for its effect, so their race is not decided by which stopped nearer its optimum (a ROSS record of
     # separate pedestals: its form, probes fixed to ground, 2 200 in BIC behind probes on the housings after

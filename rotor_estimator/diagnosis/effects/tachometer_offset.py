@@ -9,7 +9,9 @@ from typing import ClassVar
 import numpy as np
 
 from rotor_estimator.core.model import imbalance_force
+from rotor_estimator.diagnosis import models
 from rotor_estimator.diagnosis.effects.base import Effect
+from rotor_estimator.diagnosis.linsim import harmonic_phasors
 
 
 @dataclass(frozen=True)
@@ -20,6 +22,7 @@ class TachometerOffset(Effect):
     name: ClassVar[str] = "tach_offset"
     kind: ClassVar[str] = "force"
     refit_always: ClassVar[bool] = True
+    starts_from_prior: ClassVar[bool] = True
     responses: ClassVar[dict[str, str]] = {
         "slow_roll": "vanishes (it rotates the known imbalance response)",
         "speed_change": "same angle at every speed",
@@ -39,6 +42,26 @@ class TachometerOffset(Effect):
         # the whole circle, with room on both sides so that an offset near +-180 deg is not held at a bound
         # (the optimizer moves on the unwrapped angle; :meth:`physical` wraps it)
         return np.array([-2 * np.pi]), np.array([2 * np.pi])
+
+    def refine_starts(self, ctx):
+        """The angle the record's 1X is turned by from the prior model's, ``arg sum_c conj(Y0_c) Y_c`` over the
+        four probes' 1X phasors: an offset turns the known imbalance's force, so its response, by itself. ``Y0``
+        is the known imbalance's steady 1X response of the prior coefficients r0 at the mean speed (the
+        frequency response of Eq. 2), not the nominal fit's: a large offset drags that fit until its 1X is
+        nearly turned with the record's (a mark at 160 deg read 5 deg off the fit, 18 deg in the first pass,
+        and the joint refit from there stayed in that basin). The refit runs it from r0 too
+        (:attr:`starts_from_prior`). None without a known imbalance."""
+        rows = ctx.mask
+        angle = ctx.shaft.angle_rad[rows]
+        force = harmonic_phasors(ctx.known_smooth_n[rows], angle, 1)
+        if not np.any(np.abs(force[1]) > 0):
+            return []
+        speed = ctx.mean_speed_rad_s
+        a = models.rigid_state_matrix(ctx.mats, ctx.prior_coefficients, speed)
+        state = np.linalg.solve(1j * speed * np.eye(a.shape[0]) - a, models.rigid_input(ctx.mats) @ force[1])
+        prior_1x = (models.rigid_output(ctx.mats) @ state)[:4]
+        measured_1x = harmonic_phasors(ctx.y_m[rows], angle, 1)[1]
+        return [np.array([float(np.angle(np.vdot(prior_1x, measured_1x)))])]
 
     def basis(self, ctx, nl):
         shifted = imbalance_force(ctx.mats, ctx.shaft.angle_rad + nl[0], ctx.shaft.speed_rad_s,

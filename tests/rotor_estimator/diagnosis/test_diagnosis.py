@@ -14,7 +14,7 @@ from rotor_estimator.core.config import load_rig_file
 from rotor_estimator.diagnosis.context import build_context
 from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
 from rotor_estimator.diagnosis.effects import effect_by_name
-from rotor_estimator.diagnosis.ranking import fit_effect, nominal_solution, rank_effects, refine
+from rotor_estimator.diagnosis.ranking import fit_effect, nominal_solution, rank_effects, refine, single_refit_starts
 from rotor_estimator.diagnosis.residuals import budget
 from rotor_estimator.core.simulator import Impact
 
@@ -46,8 +46,10 @@ def _fit(rig_file, name, effects, seed=3, refine_fit=False):
     ctx = build_context(sim.recording, rig, rig_file.estimator)
     _, bic0, _ = nominal_solution(ctx)
     fit = fit_effect(ctx, effect_by_name(name), reference_bic=bic0)
-    if refine_fit:
-        fit = refine(ctx, effect_by_name(name), fit, reference_bic=bic0, extra_starts=(ctx.prior_coefficients,))
+    if refine_fit:  # with the search's starts of a single effect's joint refit
+        effect = effect_by_name(name)
+        fit = refine(ctx, effect, fit, reference_bic=bic0,
+                     **single_refit_starts(ctx, effect, tuple(effect.refine_starts(ctx))))
     return fit, sim, ctx
 
 
