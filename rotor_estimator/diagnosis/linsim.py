@@ -189,6 +189,22 @@ def _first_revolutions_phasors(u_smooth: np.ndarray, angle_rad: np.ndarray, spee
     return phasors.copy()
 
 
+def foh_compensated(u_smooth: np.ndarray) -> np.ndarray:
+    """``u - (u[k+1] - 2 u[k] + u[k-1]) / 12`` along the samples (axis 0; the end samples take their neighbour's
+    second difference): the smooth input the first-order hold should interpolate. Linear interpolation of a
+    sampled sinusoid of ``theta`` rad per sample carries its fundamental at ``sinc^2(theta / 2)`` (a force at 2X
+    of 400 Hz sampled at 10 kHz: 0.98, so its fitted amplitude came out 2 % high, at 20 kHz 0.5 %); this
+    pre-emphasis multiplies it by ``1 + sin^2(theta / 2) / 3``, which leaves ``1 - 8 (theta / 2)^4 / 45`` (0.07 %
+    there). Symmetric, so no phase shift."""
+    u = np.asarray(u_smooth, dtype=float)
+    if u.shape[0] < 3:
+        return np.ascontiguousarray(u)
+    d2 = np.empty_like(u)
+    d2[1:-1] = u[2:] - 2.0 * u[1:-1] + u[:-2]
+    d2[0], d2[-1] = d2[1], d2[-2]
+    return np.ascontiguousarray(u - d2 / 12.0)
+
+
 def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,
                     schedule: SpeedSchedule, angle_rad: np.ndarray, u_smooth: np.ndarray,
                     u_step: np.ndarray | None = None, *, steady_start: bool = True,
@@ -208,8 +224,8 @@ def simulate_linear(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np
         w0 = float(schedule.speeds_rad_s[0])
         ph = _first_revolutions_phasors(u_smooth, angle_rad, w0, h_s)
         q0 = _cached_steady_state(build_a, b, ph, w0, float(angle_rad[0]), cache)
-    return _propagate(phi, g1, g2, np.ascontiguousarray(schedule.block_of_sample), u_smooth, u_step, q0,
-                      np.ascontiguousarray(c, dtype=float))
+    return _propagate(phi, g1, g2, np.ascontiguousarray(schedule.block_of_sample), foh_compensated(u_smooth), u_step,
+                      q0, np.ascontiguousarray(c, dtype=float))
 
 
 @njit(cache=True)
@@ -268,7 +284,7 @@ def simulate_linear_many(build_a: Callable[[float], np.ndarray], b: np.ndarray, 
         if np.any(us[:, :, i]):
             ph = _first_revolutions_phasors(us[:, :, i], angle_rad, w0, h_s)
             q0[:, i] = _cached_steady_state(build_a, b, ph, w0, float(angle_rad[0]), cache)
-    return _propagate_many(phi, g1, g2, np.ascontiguousarray(schedule.block_of_sample), us, q0,
+    return _propagate_many(phi, g1, g2, np.ascontiguousarray(schedule.block_of_sample), foh_compensated(us), q0,
                            np.ascontiguousarray(c, dtype=float))
 
 
@@ -419,7 +435,7 @@ def simulate_cubic(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.
     for hh in range(ph.shape[0]):
         u_pre += np.real(ph[hh][None, :] * np.exp(1j * hh * ang_pre)[:, None])
     q0 = steady_state(build_a(w0), b, ph, w0, float(ang_pre[0])) if n_pre else np.zeros(n)
-    us = np.ascontiguousarray(np.vstack([u_pre, u_smooth]), dtype=float)
+    us = foh_compensated(np.ascontiguousarray(np.vstack([u_pre, u_smooth]), dtype=float))
     uz = np.ascontiguousarray(np.vstack([np.zeros((n_pre, m)), u_step]), dtype=float)
     block = np.ascontiguousarray(np.concatenate([np.zeros(n_pre, dtype=np.int64),
                                                  schedule.block_of_sample.astype(np.int64)]))

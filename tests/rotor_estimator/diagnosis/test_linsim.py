@@ -120,3 +120,30 @@ def test_many_inputs_in_one_pass_equal_each_inputs_own_simulation_bit_for_bit():
         alone, _ = simulate_linear(build_a, b, c, h, schedule, angle, u)
         assert np.array_equal(together[:, :, i], alone)
     assert np.any(together[:, :, 0]) and not np.any(together[:, :, 2])
+
+
+def test_a_harmonic_force_drives_the_recursion_at_its_exact_steady_state_amplitude():
+    """A force at 2X of a fast rotor (theta = 0.5 rad a sample: 800 Hz at 10 kHz) started at its exact periodic
+    steady state (``steady_state``, the frequency response, no discretization) stays on it: the recursion's
+    output after 40 ms agrees with the steady state's to 0.2 % of its amplitude. A plain first-order hold of the
+    sampled force carries it at sinc^2(0.25) = 0.979 of its amplitude: 2 % off (fails without the pre-emphasis)."""
+    from rotor_estimator.diagnosis.linsim import foh_compensated, steady_state
+
+    h = 1.0 / 10000.0
+    n = 1200
+    w = 2 * np.pi * 400.0
+    mats, r, schedule = _rigid(w, n)
+    a = models.rigid_state_matrix(mats, r, w)
+    b = models.rigid_input(mats)
+    c = models.rigid_output(mats)[:4]
+    angle = w * h * np.arange(n)
+    phasors = np.zeros((3, b.shape[1]), dtype=complex)
+    phasors[2, 0], phasors[2, 1] = 100.0, -100.0j      # a forward 2X force on the first input pair
+    u = np.real(phasors[2][None, :] * np.exp(2j * angle)[:, None])
+    y, _ = simulate_linear(lambda s: models.rigid_state_matrix(mats, r, s), b, c, h, schedule, angle, u)
+    exact = np.stack([c @ steady_state(a, b, phasors, w, float(t)) for t in angle[400:]])
+    amplitude = np.abs(exact).max()
+    assert np.abs(y[400:] - exact).max() < 2e-3 * amplitude
+    x = 0.5 * 2 * w * h
+    gain = np.abs(np.fft.rfft(foh_compensated(u)[:, 0])).max() / np.abs(np.fft.rfft(u[:, 0])).max()
+    assert abs(gain * (np.sin(x) / x) ** 2 - 1.0) < 2e-3 and abs(gain - 1.0 - np.sin(x) ** 2 / 3.0) < 1e-3
