@@ -22,7 +22,6 @@ class TachometerOffset(Effect):
     name: ClassVar[str] = "tach_offset"
     kind: ClassVar[str] = "force"
     refit_always: ClassVar[bool] = True
-    starts_from_prior: ClassVar[bool] = True
     responses: ClassVar[dict[str, str]] = {
         "slow_roll": "vanishes (it rotates the known imbalance response)",
         "speed_change": "same angle at every speed",
@@ -49,8 +48,8 @@ class TachometerOffset(Effect):
         is the known imbalance's steady 1X response of the prior coefficients r0 at the mean speed (the
         frequency response of Eq. 2), not the nominal fit's: a large offset drags that fit until its 1X is
         nearly turned with the record's (a mark at 160 deg read 5 deg off the fit, 18 deg in the first pass,
-        and the joint refit from there stayed in that basin). The refit runs it from r0 too
-        (:attr:`starts_from_prior`). None without a known imbalance."""
+        and the joint refit from there stayed in that basin; from this start, at the first pass's coefficients,
+        it reached 160.2 deg). None without a known imbalance."""
         rows = ctx.mask
         angle = ctx.shaft.angle_rad[rows]
         force = harmonic_phasors(ctx.known_smooth_n[rows], angle, 1)
