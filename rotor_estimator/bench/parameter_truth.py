@@ -82,6 +82,8 @@ def independent_truth(effect: str, params: dict, planes_m: tuple[float, float],
         return _unbalance(lever_rule(u, params["plane_m"], planes_m))
     if effect == "bearing_cubic" and "cubic_n_per_m3" in params:
         return {"k3_N_per_m3": params["cubic_n_per_m3"]}
+    if effect == "bearing_cubic" and "contact_stiffness_n_per_m" in params:
+        return {"contact_stiffness_N_per_m": params["contact_stiffness_n_per_m"], "clearance_m": params["clearance_m"]}
     if effect == "pedestal" and "mass_kg" in params:
         f_hz, zeta = _oscillator(params["mass_kg"], params["stiffness_n_per_m"], params["damping_n_s_per_m"])
         return {"pedestal_frequency_hz": f_hz, "pedestal_damping_ratio": zeta}

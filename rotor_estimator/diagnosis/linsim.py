@@ -349,12 +349,25 @@ def free_response(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.n
 
 
 @njit(cache=True)
-def _bearing_force(states, k, z0, k3, static, radial, out):
+def _contact_force(dx, dy, kc, clearance):
+    """A radial contact spring beyond a clearance: ``-kc (|d| - c) d / |d|`` when ``|d| > c``, else nothing."""
+    r = np.sqrt(dx * dx + dy * dy)
+    if r <= clearance or r == 0.0:
+        return 0.0, 0.0
+    g = -kc * (r - clearance) / r
+    return g * dx, g * dy
+
+
+@njit(cache=True)
+def _bearing_force(states, k, z0, k3, static, clearance, radial, out):
     """Nonlinear bearing force on ``z = states[k, z0:z0+m]`` (x1, y1, x2, y2) into ``out``.
 
     ``radial == 0``: ``f_j = -k3_j z_j^3`` per axis. ``radial == 1``: a radial cubic ``-k3 |d|^2 d`` on each
     bearing's displacement ``d = s + z`` from its centre (``s = static``: the static load point), less its
     value and tangent at ``s`` (``|s|^2 I + 2 s s^T``), which the linear coefficients already hold.
+    ``radial == 2``: a radial contact spring of stiffness ``k3`` beyond the radial ``clearance`` (m,) on ``d``
+    (:func:`_contact_force`), less its value and tangent at ``s`` (``(1 - c/|s|) I + (c/|s|) s s^T / |s|^2``
+    times ``-k3`` when ``|s| > c``: a shaft resting on the contact has that stiffness in its coefficients).
     """
     m = out.shape[0]
     if radial == 0:
@@ -369,6 +382,19 @@ def _bearing_force(states, k, z0, k3, static, radial, out):
         sy = static[j + 1]
         dx = sx + zx
         dy = sy + zy
+        if radial == 2:
+            kc, c = k3[j], clearance[j]
+            fx, fy = _contact_force(dx, dy, kc, c)
+            gx, gy = _contact_force(sx, sy, kc, c)
+            rs = np.sqrt(sx * sx + sy * sy)
+            tx, ty = 0.0, 0.0
+            if rs > c and rs > 0.0:
+                a, b = 1.0 - c / rs, c / (rs * rs * rs)
+                tx = -kc * ((a + b * sx * sx) * zx + b * sx * sy * zy)
+                ty = -kc * (b * sx * sy * zx + (a + b * sy * sy) * zy)
+            out[j] = fx - gx - tx
+            out[j + 1] = fy - gy - ty
+            continue
         r2 = dx * dx + dy * dy
         s2 = sx * sx + sy * sy
         sd = sx * zx + sy * zy
@@ -377,7 +403,7 @@ def _bearing_force(states, k, z0, k3, static, radial, out):
 
 
 @njit(cache=True)
-def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, radial):
+def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, clearance, radial):
     """The FOH/ZOH recursion with a cubic generalized bearing force (:func:`_bearing_force`), ``z = q[z0:z0+m]``.
 
     The nonlinear force is first-order held too, its end value from a predictor step
@@ -396,7 +422,7 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, radi
         states[0, i] = q0[i]
     for k in range(n_samples - 1):
         b = block[k]
-        _bearing_force(states, k, z0, k3, static, radial, fk)
+        _bearing_force(states, k, z0, k3, static, clearance, radial, fk)
         for i in range(n):
             acc = 0.0
             for j in range(n):
@@ -404,7 +430,7 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, radi
             for j in range(m):
                 acc += g1[b, i, j] * (us[k, j] + uz[k, j] + fk[j]) + g2[b, i, j] * (us[k + 1, j] - us[k, j])
             pred[i] = acc
-        _bearing_force(pred.reshape(1, n), 0, z0, k3, static, radial, f1)
+        _bearing_force(pred.reshape(1, n), 0, z0, k3, static, clearance, radial, f1)
         for i in range(n):
             acc = pred[i]
             for j in range(m):
@@ -417,9 +443,11 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, radi
 def simulate_cubic(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,
                    schedule: SpeedSchedule, angle_rad: np.ndarray, u_smooth: np.ndarray, u_step: np.ndarray,
                    k3: np.ndarray, z_index: int, *, preroll_s: float = 0.05, static_m: np.ndarray | None = None,
+                   clearance_m: np.ndarray | None = None,
                    cache: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`simulate_linear` plus the cubic force ``-k3 z^3`` on states ``z_index..z_index+m`` (per axis), or,
-    with ``static_m`` (m,), the radial cubic about that static load point (:func:`_bearing_force`).
+    with ``static_m`` (m,), the radial cubic about that static load point, or, with ``clearance_m`` (m,) too, a
+    radial contact spring of stiffness ``k3`` beyond that clearance (:func:`_bearing_force`).
 
     The nonlinear periodic state is reached by a pre-roll of ``preroll_s`` seconds driven
     by the steady harmonic part of ``u_smooth`` (fitted over the first revolutions),
@@ -439,8 +467,11 @@ def simulate_cubic(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.
     uz = np.ascontiguousarray(np.vstack([np.zeros((n_pre, m)), u_step]), dtype=float)
     block = np.ascontiguousarray(np.concatenate([np.zeros(n_pre, dtype=np.int64),
                                                  schedule.block_of_sample.astype(np.int64)]))
-    radial = 0 if static_m is None else 1
+    if clearance_m is not None and static_m is None:
+        raise ValueError("simulate_cubic: a contact's clearance_m needs its static_m")
+    radial = 0 if static_m is None else (1 if clearance_m is None else 2)
     static = np.zeros(m) if static_m is None else np.ascontiguousarray(static_m, dtype=float)
+    clearance = np.zeros(m) if clearance_m is None else np.ascontiguousarray(clearance_m, dtype=float)
     out, states = _propagate_cubic(phi, g1, g2, block, us, uz, q0, np.ascontiguousarray(c, dtype=float),
-                                   np.ascontiguousarray(k3, dtype=float), z_index, static, radial)
+                                   np.ascontiguousarray(k3, dtype=float), z_index, static, clearance, radial)
     return out[n_pre:], states[n_pre:]

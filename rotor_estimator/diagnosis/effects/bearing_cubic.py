@@ -1,6 +1,7 @@
 # Copyright 2026 rotor_estimator developers
 # SPDX-License-Identifier: Apache-2.0
-"""Bearing nonlinearity: a cubic stiffness at each bearing, per axis or radial about the static load point."""
+"""Bearing nonlinearity: a cubic stiffness at each bearing, per axis or radial about the static load point, or a
+contact spring beyond a radial clearance (a rub)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -35,7 +36,7 @@ class BearingCubic(Effect):
     description: ClassVar[str] = "cubic bearing stiffness (hardening/softening), k3x and k3y"
 
     def variants(self):
-        return (BearingCubic(), RadialBearingCubic())
+        return (BearingCubic(), RadialBearingCubic(), ClearanceContact())
 
     @property
     def form(self) -> str:
@@ -179,22 +180,29 @@ class RadialBearingCubic(BearingCubic):
             out.append(np.array([k3, p[0], p[1]]))
         return out
 
-    def _simulate(self, ctx, k3_n_per_m3: np.ndarray, static_um: np.ndarray | None = None) -> np.ndarray:
+    def _simulate(self, ctx, k3_n_per_m3: np.ndarray, static_um: np.ndarray | None = None,
+                  clearance_um: float | None = None) -> np.ndarray:
+        """Probe output (N, 4) with the radial force about ``static_um``: the cubic of ``k3``, or with
+        ``clearance_um`` the contact spring of stiffness ``k3`` (N/m) beyond it."""
         mats, r = ctx.mats, ctx.coefficients
         k3 = np.full(4, float(k3_n_per_m3[0]))
         static = np.zeros(4) if static_um is None else np.tile(np.asarray(static_um, float) * 1e-6, 2)
+        clearance = None if clearance_um is None else np.full(4, float(clearance_um) * 1e-6)
         out, _ = simulate_cubic(lambda w: models.rigid_state_matrix(mats, r, w), models.rigid_input(mats),
                                 models.rigid_output(mats), ctx.period_s, ctx.schedule, ctx.shaft.angle_rad,
-                                ctx.known_smooth_n, ctx.known_step_n, k3, 4, static_m=static,
+                                ctx.known_smooth_n, ctx.known_step_n, k3, 4, static_m=static, clearance_m=clearance,
                                 cache=ctx._cache.setdefault("cubic_discretization", {}))
         return out[:, :4]
+
+    def _simulate_form(self, ctx, nl: np.ndarray) -> np.ndarray:
+        """:meth:`_simulate` at this form's nonlinear parameters ``nl``."""
+        return self._simulate(ctx, nl[:1] * self.nl_unit, nl[1:])
 
     def basis(self, ctx, nl):
         ref = ctx._cache.get("cubic_zero")
         if ref is None:
             ref = ctx._cache["cubic_zero"] = BearingCubic._simulate(self, ctx, np.zeros(2))
-        nl = np.asarray(nl, float)
-        y = self._simulate(ctx, nl[:1] * self.nl_unit, nl[1:])
+        y = self._simulate_form(ctx, np.asarray(nl, float))
         if not np.all(np.isfinite(y)):
             y = np.full_like(y, np.nan)
         return y - ref, np.zeros((ctx.t_s.size, 4, 0))
@@ -202,3 +210,95 @@ class RadialBearingCubic(BearingCubic):
     def physical(self, nl, lin):
         return {"k3_N_per_m3": float(nl[0] * self.nl_unit), "static_x_m": float(nl[1] * 1e-6),
                 "static_y_m": float(nl[2] * 1e-6)}
+
+
+@dataclass(frozen=True)
+class ClearanceContact(RadialBearingCubic):
+    """A contact spring beyond a radial clearance at each bearing, ``f = -kc (|d| - c) d / |d|`` for ``|d| > c``
+    on the displacement ``d = s + z`` from the bearing centre: a rub, or a bearing whose clearance the orbit
+    closes for part of each revolution (piecewise linear, so its harmonics are not a cubic's).
+
+    As the radial cubic, it runs about the static load point ``s`` and the coefficients are the tangent there
+    (the contact's stiffness is in them when the shaft rests on it); what the linear model lacks is the rest
+    (:func:`.linsim._bearing_force`, ``radial == 2``). Fitted: ``log10 kc``, ``c`` and ``s`` (the same at both
+    bearings). The contact shows only when the orbit crosses the clearance, so the starts put ``c`` at the
+    static point's radius and half the orbit's radius either side, with ``kc`` a third and three times the
+    prior stiffness, at each static point of the radial form.
+    """
+
+    nl_names: ClassVar[tuple[str, ...]] = ("log10_contact_N_per_m", "clearance_um", "static_x_um", "static_y_um")
+    description: ClassVar[str] = ("contact spring beyond a radial bearing clearance (a rub) about the static load "
+                                  "point: its stiffness, the clearance and the point")
+    #: Contact stiffness of the starts, relative to the prior's mean direct stiffness.
+    start_stiffness_ratios: ClassVar[tuple[float, ...]] = (1.0 / 3.0, 3.0)
+    #: Clearances of the starts: the static point's radius plus these fractions of the orbit's radius.
+    start_clearance_offsets: ClassVar[tuple[float, ...]] = (-0.5, 0.0, 0.5)
+
+    @property
+    def form(self) -> str:
+        return "contact beyond a radial clearance"
+
+    def _prior_stiffness(self, ctx) -> float:
+        return max(float(np.abs(np.asarray(ctx.prior_coefficients, float)[[0, 3]]).mean()), 1.0)
+
+    def _orbit_radius_um(self, ctx) -> float:
+        """The largest radius of the nominal fit's bearing orbits about their mean, micrometres."""
+        z = ctx.z_nom_m[ctx.mask]
+        z = z - z.mean(axis=0)
+        return float(max(np.max(np.hypot(z[:, 0], z[:, 1])), np.max(np.hypot(z[:, 2], z[:, 3]))) * 1e6)
+
+    #: Static points of the starts: the centre, and these fractions of the gravity sag on the prior's stiffness
+    #: matrix in each of the four directions (the rig file does not say which way is down): ``s = K^-1 w``, ``w``
+    #: half the rotor's weight, so a cross-coupled bearing sags askew (one record rested at -45 deg, where the
+    #: axis-aligned starts of the radial form never reached). The nominal fit's matrix is not used: a contact
+    #: drags it far (kxx -0.3 MN/m on that record, sags of 350-700 um).
+    start_sag_fractions: ClassVar[tuple[float, ...]] = (0.5, 1.0)
+    #: Contact stiffness of the joint refit's starts, relative to the prior's mean direct stiffness: a contact
+    #: may be much stiffer than the bearing (a stop), which the first pass about the dragged fit rarely sees.
+    refine_stiffness_ratios: ClassVar[tuple[float, ...]] = (1.0, 30.0)
+
+    def _contact_points(self, ctx, fractions: tuple[float, ...]) -> list[np.ndarray]:
+        load_n = ctx.rig.shaft_mass_kg * GRAVITY_M_S2 / 2.0
+        points = [np.zeros(2)]
+        k = np.asarray(ctx.prior_coefficients, float)[:4].reshape(2, 2)
+        if abs(np.linalg.det(k)) < 1e-12 * max(float(np.abs(k).max()), 1.0) ** 2:
+            return points + self._static_points(ctx)[:4]  # a singular prior: the radial form's axis-aligned sags
+        for w in ((0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0)):
+            sag_um = np.linalg.solve(k, load_n * np.array(w)) * 1e6
+            points += [f * sag_um for f in fractions]
+        return points
+
+    def _starts(self, ctx, fractions, ratios, offsets) -> list[np.ndarray]:
+        """Starts at each static point, clearance and stiffness ratio. The clearance is the static point's radius
+        plus ``offsets`` times the orbit's radius (where the orbit crosses it); about the centre, the orbit's
+        radius times ``0.5 + offsets / 2``."""
+        k = self._prior_stiffness(ctx)
+        orbit = self._orbit_radius_um(ctx)
+        lo, hi = self.nl_bounds(ctx)
+        out = []
+        for p in self._contact_points(ctx, fractions):
+            radius = float(np.hypot(*p))
+            for off in offsets:
+                c = radius + off * orbit if radius > 0 else (0.5 + 0.5 * off) * orbit
+                for ratio in ratios:
+                    out.append(np.clip(np.array([np.log10(ratio * k), max(c, 0.0), p[0], p[1]]), lo + 1e-9,
+                                       hi - 1e-9))
+        return out
+
+    def nl_grid(self, ctx):
+        return self._starts(ctx, self.start_sag_fractions, self.start_stiffness_ratios, self.start_clearance_offsets)
+
+    def refine_starts(self, ctx):
+        return self._starts(ctx, (1.0,), self.refine_stiffness_ratios, (0.0,))
+
+    def nl_bounds(self, ctx):
+        k = np.log10(self._prior_stiffness(ctx))
+        smax = max(50.0, 10.0 * self._sag_um(ctx))
+        return np.array([k - 2.0, 0.0, -smax, -smax]), np.array([k + 2.0, 2.0 * smax, smax, smax])
+
+    def _simulate_form(self, ctx, nl: np.ndarray) -> np.ndarray:
+        return self._simulate(ctx, np.array([10.0 ** nl[0]]), nl[2:4], float(nl[1]))
+
+    def physical(self, nl, lin):
+        return {"contact_stiffness_N_per_m": float(10.0 ** nl[0]), "clearance_m": float(nl[1] * 1e-6),
+                "static_x_m": float(nl[2] * 1e-6), "static_y_m": float(nl[3] * 1e-6)}

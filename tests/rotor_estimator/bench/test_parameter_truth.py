@@ -24,6 +24,21 @@ def test_lever_rule_keeps_the_force_and_its_moment():
     assert u1 * planes[0] + u2 * planes[1] == pytest.approx(u * z)
 
 
+def test_a_contacts_truth_reads_as_the_contact_form_reports_it():
+    """The independent generator's contact (``contact_stiffness_n_per_m`` beyond ``clearance_m``) maps to the
+    names the contact form's ``physical`` reports, with the same values (its nl: log10 stiffness and
+    micrometres), so the benchmark's parameter coverage counts it; a radial cubic's label maps to ``k3``."""
+    from rotor_estimator.diagnosis.effects.bearing_cubic import ClearanceContact
+
+    truth = independent_truth("bearing_cubic", {"contact_stiffness_n_per_m": 2.0e7, "clearance_m": 3.1e-5},
+                              (0.0, 1.0), 20e3)
+    reported = ClearanceContact().physical(np.array([math.log10(2.0e7), 31.0, 5.0, -9.0]), np.zeros(0))
+    assert set(truth) <= set(reported)
+    for name, value in truth.items():
+        assert reported[name] == pytest.approx(value)
+    assert independent_truth("bearing_cubic", {"cubic_n_per_m3": 1e14}, (0.0, 1.0), 20e3) == {"k3_N_per_m3": 1e14}
+
+
 @pytest.mark.parametrize("channel", range(4))
 def test_misorientation_and_gain_read_as_the_library_reports_them(channel):
     """The independent generator's probe ``g (x cos b + y sin b)`` / ``g (-x sin b + y cos b)``, written as the

@@ -12,8 +12,8 @@ import pytest
 from rotor_estimator.bench import independent
 from rotor_estimator.diagnosis.context import build_context
 from rotor_estimator.diagnosis.effects import Misalignment, ProbeRunout, ResidualUnbalance
-from rotor_estimator.diagnosis.effects.bearing_cubic import BearingCubic, RadialBearingCubic
-from rotor_estimator.diagnosis.ranking import fit_effect, nominal_solution, rank_effects, refine
+from rotor_estimator.diagnosis.effects.bearing_cubic import BearingCubic, ClearanceContact, RadialBearingCubic
+from rotor_estimator.diagnosis.ranking import fit_effect, nominal_solution, rank_effects, refine, single_refit_starts
 
 warnings.filterwarnings("ignore", category=RuntimeWarning)
 
@@ -29,10 +29,10 @@ def _case(spec: dict, first_seed: int, start: str, min_gap: float = 1.0):
 
 
 def _refined(ctx, effect, bic0):
+    """The first pass, then the joint refit with the search's starts for a single effect."""
     fit = fit_effect(ctx, effect, reference_bic=bic0)
-    starts = tuple(effect.refine_starts(ctx))
-    return refine(ctx, effect, fit, reference_bic=bic0, extra_starts=(ctx.prior_coefficients,), nl_starts=starts,
-                  start_pairs=tuple((ctx.prior_coefficients, p) for p in starts), max_nfev=12)
+    return refine(ctx, effect, fit, reference_bic=bic0,
+                  **single_refit_starts(ctx, effect, tuple(effect.refine_starts(ctx))))
 
 
 @pytest.mark.slow
@@ -58,6 +58,29 @@ def test_a_radial_hardening_under_gravity_is_the_radial_form_not_a_2x_force(firs
         (radial.delta_bic, per_axis.delta_bic, misalignment.delta_bic)
     k3, std = radial.physical["k3_N_per_m3"], radial.physical_std["k3_N_per_m3"]
     assert abs(k3 / k3_true - 1) < 0.5, (k3, std, k3_true)
+
+
+@pytest.mark.slow
+def test_a_stiff_clearance_contact_is_the_contact_form_not_a_radial_cubic():
+    """A contact spring beyond a radial clearance at both bearings (the independent generator's rub, here 30x
+    the bearing stiffness: a stop the orbit about the gravity sag reaches for part of each revolution; the
+    first steady case from seed 9100 with a true gap of at least 1.2x, the generator's least) is explained
+    better by the contact form than by the radial cubic (delta BIC 1942 against 585), the tangent coefficients
+    within 20 % of the largest direct one (the radial form's 245 % off), and its stiffness within 3 reported
+    std. Its clearance is not asserted: 1.4 um off at a std of 0.3 um (a stop's clearance trades off against
+    the static point). Of 7 contact records seen, the contact form beat the radial one on 5; on one it lost
+    (1020 against 1218) and on one of 6.9x both failed."""
+    case = _case({"kind": "single", "form": "bearing_cubic:clearance_contact"}, 9100, "steady", min_gap=1.2)
+    truth = case.label["effect_params"]["bearing_cubic"]
+    ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)
+    _, bic0, _ = nominal_solution(ctx)
+    contact = _refined(ctx, ClearanceContact(), bic0)
+    radial = _refined(ctx, RadialBearingCubic(), bic0)
+    assert contact.delta_bic > max(30.0, radial.delta_bic + 10), (contact.delta_bic, radial.delta_bic)
+    value, std = contact.physical["contact_stiffness_N_per_m"], contact.physical_std["contact_stiffness_N_per_m"]
+    assert abs(value - truth["contact_stiffness_n_per_m"]) < 3 * std, (value, std, truth)
+    tangent = np.asarray(case.label["true_tangent_coefficients"])
+    assert np.max(np.abs(contact.coefficients[:4] - tangent[:4])) < 0.2 * np.abs(tangent[[0, 3]]).max()
 
 
 @pytest.mark.slow
@@ -163,18 +186,14 @@ def test_a_run_from_rest_without_an_impact_shows_its_start_transient_though_the_
     """A misalignment (forward and backward 2X forces with a static preload) in a record from rest without an
     impact: the nominal fit absorbs the 2X and the start into coefficients at which the start columns explain
     nothing, so the test at the nominal fit alone said "steady" (on this seed, and on seed 7420's case 3). Fitted
-    with and without the start transient (start_transient_shows_refitted), the record shows it."""
-    from unittest import mock
-
+    with and without the start transient (start_transient_shows_refitted), the record shows it. Since the
+    first-order-hold mend of the re-simulation (9f8d6fe) the test at the nominal fit alone shows it on this seed
+    too, so that premise is no longer asserted."""
     case = _case({"kind": "single", "form": "misalignment:forward_backward_2x+preload", "impact": False}, 9126,
                  "from_rest", min_gap=1.5)
     assert not case.label["impacts"]
     ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)
     assert ctx.start_transient
-    # the premise: at the coefficients fitted as if the record started steady, the old test did not show it
-    with mock.patch("rotor_estimator.diagnosis.context.start_transient_shows_refitted", return_value=None):
-        steady_ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)
-    assert not steady_ctx.start_transient
 
 
 @pytest.mark.slow

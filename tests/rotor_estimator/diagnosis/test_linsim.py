@@ -57,7 +57,7 @@ def test_radial_bearing_force_matches_the_effects_own_and_has_no_value_or_tangen
     z = rng.normal(size=(50, 4)) * 6e-6
     out = np.empty(4)
     for k in range(z.shape[0]):
-        _bearing_force(z, k, 0, np.ones(4), np.tile(static_um * 1e-6, 2), 1, out)
+        _bearing_force(z, k, 0, np.ones(4), np.tile(static_um * 1e-6, 2), np.zeros(4), 1, out)
         np.testing.assert_allclose(out, effect._force(z[k:k + 1], static_um)[0], rtol=1e-9, atol=1e-30)
     h = 1e-9
     tangent = float(np.sum((static_um * 1e-6) ** 2))
@@ -67,6 +67,38 @@ def test_radial_bearing_force_matches_the_effects_own_and_has_no_value_or_tangen
         f = effect._force(dz, static_um)
         assert np.all(np.abs(f[0] - f[1]) / (2 * h) < 1e-5 * tangent)
     assert np.all(np.abs(effect._force(np.zeros((1, 4)), static_um)) < 1e-12 * tangent * 1e-6)
+
+
+def test_contact_force_is_the_independent_generators_less_its_value_and_tangent_at_the_static_point():
+    """The recursion's contact spring beyond a clearance (``radial == 2``) equals the independent generator's
+    force law (:func:`.bench.independent_physics.nonlinear_bearing_force`, a second implementation) on
+    ``s + z``, less its value at ``s`` and its tangent there (that module's central-difference
+    :func:`bearing_tangent_stiffness`): for a shaft resting on the contact (``|s| > c``) and for one clear of
+    it; and a clearance beyond every displacement leaves no force at all."""
+    from rotor_estimator.bench.independent_physics import (BearingNonlinearity, bearing_tangent_stiffness,
+                                                           nonlinear_bearing_force)
+
+    rng = np.random.default_rng(11)
+    kc = 4.0e6
+    z = rng.normal(size=(40, 4)) * 8e-6
+    out = np.empty(4)
+    for static_um, clearance_um in (((6.0, -12.0), 10.0), ((3.0, -4.0), 9.0)):
+        s = np.array(static_um) * 1e-6
+        nl = BearingNonlinearity(clearance_m=clearance_um * 1e-6, contact_stiffness_n_per_m=kc)
+        tangent = bearing_tangent_stiffness(nl, s)  # (2, 2) stiffness: minus the force's derivative
+        for k in range(z.shape[0]):
+            _bearing_force(z, k, 0, np.full(4, kc), np.tile(s, 2), np.full(4, clearance_um * 1e-6), 2, out)
+            for j in (0, 2):
+                d = z[k, j:j + 2]
+                expected = nonlinear_bearing_force(nl, s + d) - nonlinear_bearing_force(nl, s) + tangent @ d
+                np.testing.assert_allclose(out[j:j + 2], expected, rtol=1e-6, atol=1e-6 * kc * 1e-6)
+        if np.hypot(*s) < clearance_um * 1e-6:
+            assert np.all(tangent == 0.0)
+        else:
+            assert np.abs(tangent).max() > 0.1 * kc
+    for k in range(z.shape[0]):
+        _bearing_force(z, k, 0, np.full(4, kc), np.zeros(4), np.full(4, 1e-3), 2, out)
+        assert np.all(out == 0.0)
 
 
 def test_kept_first_revolution_phasors_equal_a_fresh_fit_and_cannot_be_altered_by_a_caller():
