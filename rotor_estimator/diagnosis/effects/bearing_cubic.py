@@ -222,8 +222,9 @@ class ClearanceContact(RadialBearingCubic):
     (the contact's stiffness is in them when the shaft rests on it); what the linear model lacks is the rest
     (:func:`.linsim._bearing_force`, ``radial == 2``). Fitted: ``log10 kc``, ``c`` and ``s`` (the same at both
     bearings). The contact shows only when the orbit crosses the clearance, so the starts put ``c`` at the
-    static point's radius and half the orbit's radius either side, with ``kc`` a third and three times the
-    prior stiffness, at each static point of the radial form.
+    static point's radius and half the orbit's radius either side (:meth:`_starts`), at the gravity sags of
+    :meth:`_contact_points`; the first pass's grid with ``kc`` a third and three times the prior stiffness, the
+    joint refit's with ``kc`` at it and 30 times it.
     """
 
     nl_names: ClassVar[tuple[str, ...]] = ("log10_contact_N_per_m", "clearance_um", "static_x_um", "static_y_um")
