@@ -115,16 +115,20 @@ def harmonic_phasors(u: np.ndarray, angle_rad: np.ndarray, n_harmonics: int = 4)
     return out
 
 
+def harmonic_state_phasor(a: np.ndarray, b: np.ndarray, u_h: np.ndarray, harmonic: int,
+                          speed_rad_s: float) -> np.ndarray:
+    """The steady state's phasor ``(j h Omega I - A)^-1 B U_h`` of the input phasor ``U_h`` at harmonic ``h``."""
+    return np.linalg.solve(1j * harmonic * speed_rad_s * np.eye(a.shape[0]) - a, b @ u_h)
+
+
 def steady_state(a: np.ndarray, b: np.ndarray, phasors: np.ndarray, speed_rad_s: float,
                  angle0_rad: float) -> np.ndarray:
     """Periodic steady state at shaft angle ``angle0_rad``: ``sum_h Re((j h Omega I - A)^-1 B U_h e^{j h angle0})``."""
-    n = a.shape[0]
-    q = np.zeros(n)
+    q = np.zeros(a.shape[0])
     for h, u_h in enumerate(phasors):
         if not np.any(u_h):
             continue
-        x_h = np.linalg.solve(1j * h * speed_rad_s * np.eye(n) - a, b @ u_h)
-        q += np.real(x_h * np.exp(1j * h * angle0_rad))
+        q += np.real(harmonic_state_phasor(a, b, u_h, h, speed_rad_s) * np.exp(1j * h * angle0_rad))
     return q
 
 

@@ -132,9 +132,12 @@ class RadialBearingCubic(BearingCubic):
     def form(self) -> str:
         return "radial about the static load point"
 
+    def _prior_stiffness(self, ctx) -> float:
+        """The prior's mean direct stiffness, N/m (at least 1)."""
+        return max(float(np.abs(np.asarray(ctx.prior_coefficients, float)[[0, 3]]).mean()), 1.0)
+
     def _sag_um(self, ctx) -> float:
-        k = np.abs(np.asarray(ctx.prior_coefficients, float)[[0, 3]]).mean()
-        return float(ctx.rig.shaft_mass_kg * GRAVITY_M_S2 / (2.0 * max(k, 1.0)) * 1e6)
+        return float(ctx.rig.shaft_mass_kg * GRAVITY_M_S2 / (2.0 * self._prior_stiffness(ctx)) * 1e6)
 
     def _static_points(self, ctx) -> list[np.ndarray]:
         g = self._sag_um(ctx)
@@ -171,7 +174,7 @@ class RadialBearingCubic(BearingCubic):
     def refine_starts(self, ctx):
         e = ctx.y_m[ctx.mask]
         x2 = float(np.max(np.mean((e - e.mean(axis=0)) ** 2, axis=0)))
-        k = float(np.abs(np.asarray(ctx.prior_coefficients, float)[[0, 3]]).mean())
+        k = self._prior_stiffness(ctx)
         lo, hi = self.nl_bounds(ctx)
         out = []
         for p in self._static_points(ctx):
@@ -238,9 +241,6 @@ class ClearanceContact(RadialBearingCubic):
     @property
     def form(self) -> str:
         return "contact beyond a radial clearance"
-
-    def _prior_stiffness(self, ctx) -> float:
-        return max(float(np.abs(np.asarray(ctx.prior_coefficients, float)[[0, 3]]).mean()), 1.0)
 
     def _orbit_radius_um(self, ctx) -> float:
         """The largest radius of the nominal fit's bearing orbits about their mean, micrometres."""

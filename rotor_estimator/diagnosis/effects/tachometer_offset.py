@@ -11,7 +11,7 @@ import numpy as np
 from rotor_estimator.core.model import imbalance_force
 from rotor_estimator.diagnosis import models
 from rotor_estimator.diagnosis.effects.base import Effect
-from rotor_estimator.diagnosis.linsim import harmonic_phasors
+from rotor_estimator.diagnosis.linsim import harmonic_phasors, harmonic_state_phasor
 
 
 @dataclass(frozen=True)
@@ -56,8 +56,8 @@ class TachometerOffset(Effect):
         if not np.any(np.abs(force[1]) > 0):
             return []
         speed = ctx.mean_speed_rad_s
-        a = models.rigid_state_matrix(ctx.mats, ctx.prior_coefficients, speed)
-        state = np.linalg.solve(1j * speed * np.eye(a.shape[0]) - a, models.rigid_input(ctx.mats) @ force[1])
+        state = harmonic_state_phasor(models.rigid_state_matrix(ctx.mats, ctx.prior_coefficients, speed),
+                                      models.rigid_input(ctx.mats), force[1], 1, speed)
         prior_1x = (models.rigid_output(ctx.mats) @ state)[:4]
         measured_1x = harmonic_phasors(ctx.y_m[rows], angle, 1)[1]
         return [np.array([float(np.angle(np.vdot(prior_1x, measured_1x)))])]
