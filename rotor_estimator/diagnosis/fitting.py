@@ -252,7 +252,7 @@ SPECTRUM_CHUNK_LINES = 2048
 
 
 def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int,
-                        prior_precision: np.ndarray | None = None) -> np.ndarray:
+                        prior_precision: np.ndarray | None = None, prior_noise_var: float = 0.0) -> np.ndarray:
     """Covariance of least-squares parameters when the residual is not white (a sandwich estimate).
 
     ``design`` (T, C, p) and ``residual`` (T, C): T consecutive samples of C channels. The residual is
@@ -262,8 +262,14 @@ def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int,
     power in their own band (a 1X parameter by the 1X misfit). With a white residual it reduces to
     ``sigma^2 B^-1``. Unlike a Newey-West sum over lags of the scores, it is not biased low by the
     fitted sinusoids (a long lag window on 1X-modulated scores halved the std of a fit with 16 columns).
-    ``prior_precision`` (p,): the diagonal a Gaussian prior's pseudo-observations add to ``B`` (a MAP fit's
-    bread ``(A^T A + Lambda)^-1``; the prior adds information, not residual power).
+    ``prior_precision`` (p,): the diagonal ``Lambda`` a Gaussian prior's pseudo-observations add to ``B`` (a MAP
+    fit's bread ``(A^T A + Lambda)^-1``), and ``prior_noise_var`` the variance of those pseudo-observations
+    (the noise level the prior's rows are written at), which they add to the meat as ``prior_noise_var *
+    Lambda``: so the covariance is that of the parameters about the truth (the Laplace posterior's,
+    ``sigma^2 B^-1`` with a white residual), not only the estimate's scatter over noise draws. Without that
+    term a parameter the data leave free sits at its prior mean with a std near zero: a record of steady 1X
+    without an impact fitted kyy at the prior's 0.30 MN/m against a true 0.58 with a std of 0.024 (12 std
+    off), where the prior's own std is 0.32.
     """
     from scipy.signal import csd
 
@@ -310,7 +316,10 @@ def spectral_covariance(design: np.ndarray, residual: np.ndarray, segment: int,
         a_f = spec[f0:f0 + SPECTRUM_CHUNK_LINES].astype(complex)
         s_a = np.matmul(cross_half[f0:f0 + SPECTRUM_CHUNK_LINES], a_f.conj())  # (F, C, p)
         meat += (a_f.reshape(-1, p).T @ s_a.reshape(-1, p)).real
-    return bread @ (meat / m) @ bread
+    meat = meat / m
+    if prior_precision is not None:
+        meat = meat + prior_noise_var * np.diag(np.asarray(prior_precision, float))
+    return bread @ meat @ bread
 
 
 def bic(rss_m2: float, n_obs: int, n_params: int) -> float:

@@ -500,7 +500,8 @@ def parameter_covariance(ctx: FitContext, cols: np.ndarray, nl_sensitivity: np.n
     weights = linear_prior_weights(ctx, cols)  # and the magnitude prior on the gains
     k_lin = fixed_columns(ctx) + cols.shape[2]
     precision[k_lin - weights.size:k_lin] = weights ** 2
-    return spectral_covariance(design, (ctx.y_m - prediction_m)[rows], correlation_segment(ctx), precision)
+    return spectral_covariance(design, (ctx.y_m - prediction_m)[rows], correlation_segment(ctx), precision,
+                               ctx.prior.noise_std_m ** 2)  # the prior's rows are written at this noise level
 
 
 def _nl_sensitivities(ctx: FitContext, effect: Effect, nl: np.ndarray, base, fixed_base, base_effects,
