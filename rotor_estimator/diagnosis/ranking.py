@@ -32,7 +32,7 @@ from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, PRIOR_ROWS, FitContext, coefficient_difference_steps,
                                               fit_nominal, nuisance_columns, recentered, rigid_model_is_stable,
                                               stable_start, start_in_effect, start_transient_sensitivity,
-                                              with_coefficients)
+                                              with_coefficients, without_cross_coupling)
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
                                               correlation_segment, gain_prior_rows, spectral_covariance,
@@ -1027,15 +1027,26 @@ def _stable(ctx: FitContext, coefficients: np.ndarray) -> bool:
 
 def _stabilized(ctx: FitContext, coefficients: np.ndarray) -> np.ndarray:
     """``coefficients`` when the rigid model with them is stable (:func:`_stable`), else the first stable point
-    on the line from them to the context's (the nominal fit's) coefficients (:func:`stable_start`).
+    on the line from them to their own :func:`without_cross_coupling` form (the same direct terms, no
+    cross-coupling: stable at every speed), or when none is, on the line to the context's (the nominal fit's)
+    coefficients (:func:`stable_start`).
 
     A rig file's prior r0 is a rough guess and can be unstable at the running speed (a generic r0 with
     cross-coupled stiffness of the direct's size was, on ROSS records at 20 krpm). Replacing it by the nominal
     fit, as before, made every start "from r0" a copy of a start from the nominal fit, which a large effect
     may have dragged far off (kxx 0.73e5 against 5.4e5 N/m beside a 40 Hz pedestal). The stable point
     nearest r0 on the way keeps most of what r0 knows: the pedestal's refit from it recovered 39.8 Hz,
-    damping ratio 0.089 and 5.5 kg against 40 Hz, 0.090 and 5.4 kg.
+    damping ratio 0.089 and 5.5 kg against 40 Hz, 0.090 and 5.4 kg. The way to the nominal fit can be unstable
+    to its end, though (a 40 Hz pedestal of 0.42 MN/m under bearings of 0.56-0.77 MN/m dragged the nominal
+    fit to kxx = -0.17 MN/m, and the line from r0 to it was unstable but for its end point: every pedestal
+    start from "r0" was a start from the dragged fit, and none reached the truth's basin); the way to r0's
+    own stable form drops only the whirl-driving cross-coupling (kxy = -kyx = 0.30 MN/m became 0.26), and
+    three of the four ladder starts from there reached it (40.0 Hz, damping ratio 0.057, 6.7 kg against
+    40 Hz, 0.057, 6.7 kg; direct stiffness within 2 %, cross-coupled within 0.03 MN/m).
     """
+    own = stable_start(ctx.mats, coefficients, without_cross_coupling(coefficients), ctx.mean_speed_rad_s)
+    if _stable(ctx, own):
+        return own
     return stable_start(ctx.mats, coefficients, ctx.coefficients, ctx.mean_speed_rad_s)
 
 
