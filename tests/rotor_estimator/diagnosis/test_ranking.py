@@ -50,23 +50,36 @@ def test_stability_check_rejects_negative_damping():
     assert not _stable(ctx, bad)
 
 
-def test_unstable_start_moves_to_the_nearest_stable_point_towards_the_nominal_fit():
-    """An unstable start (negative direct damping) becomes a stable point on the segment to the context's
-    coefficients, short of them (it keeps part of the start); a stable start is left as it is."""
+def test_unstable_start_moves_toward_its_own_stable_form_and_else_to_the_nominal_fit():
+    """An unstable start becomes the first stable point on the segment to its own form without cross-coupling
+    (:func:`.context.without_cross_coupling`, stable at every speed), short of it: a whirl-driving cross-coupled
+    stiffness (kxy = -kyx, the direct stiffness' size, light damping) keeps its direct terms and part of its
+    cross-coupling; negative direct damping is moved toward its magnitude. A stable start is left as it is, and
+    a start with no stable form on the way (not finite) becomes the context's (the nominal fit's)
+    coefficients."""
     from rotor_estimator.core.model import rotor_matrices
+    from rotor_estimator.diagnosis.context import without_cross_coupling
     from rotor_estimator.diagnosis.ranking import _stabilized
 
     rig = load_rig_file().rig
     r = rig.true_coefficients.as_array()
     ctx = SimpleNamespace(mats=rotor_matrices(rig), mean_speed_rad_s=rig.speed_rad_s, coefficients=r)
     assert np.array_equal(_stabilized(ctx, r * 1.1), r * 1.1)
-    bad = r.copy()
-    bad[4] = bad[7] = -abs(r[7])
-    moved = _stabilized(ctx, bad)
-    assert _stable(ctx, moved)
-    t = (moved[4] - bad[4]) / (r[4] - bad[4])
-    np.testing.assert_allclose(moved, bad + t * (r - bad), rtol=1e-12)  # on the segment
-    assert 0.0 < t < 1.0
+    whirl = r.copy()
+    whirl[1], whirl[2] = 3.0 * r[0], -3.0 * r[0]
+    whirl[4:] = 0.01 * r[4:]
+    damped = r.copy()
+    damped[4] = damped[7] = -abs(r[7])
+    for bad in (whirl, damped):
+        assert not _stable(ctx, bad)
+        moved = _stabilized(ctx, bad)
+        assert _stable(ctx, moved)
+        own = without_cross_coupling(bad)
+        changed = np.flatnonzero(own != bad)
+        t = (moved[changed[0]] - bad[changed[0]]) / (own[changed[0]] - bad[changed[0]])
+        np.testing.assert_allclose(moved, bad + t * (own - bad), rtol=1e-12, atol=1e-9)  # on the segment
+        assert 0.0 < t <= 1.0
+    np.testing.assert_allclose(_stabilized(ctx, np.full(8, np.nan)), r)
 
 
 @pytest.mark.slow
