@@ -140,8 +140,10 @@ def test_a_fit_from_rest_has_the_coefficient_covariance_of_its_exact_misfit_once
     start transient alone). The coefficient stds from the fit's linearized design ``[J + dS/dr s, D, S, X]``
     (parameter_covariance) are those of the Gauss-Newton curvature of the exact re-simulated misfit
     (joint_misfit, forward differences in the 8 coefficients, every other parameter re-projected) within 50 %
-    (0.70-0.81 of them here); with ``J`` alone (the transient's shape held) some are more than 3x too small
-    (10x here; the two terms are large and nearly cancel; 100x on an independent record)."""
+    (0.70-0.81 of them here); with ``J`` alone (the transient's shape held) some are more than 3x off (the two
+    terms are large and nearly cancel): 6x too wide here, where the held design leaves the coefficients to the
+    prior and its std stands (10x too narrow before the prior's noise entered the sandwich's meat, 100x on an
+    independent record)."""
     from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, build_context, recentered,
                                                    start_transient_sensitivity)
     from rotor_estimator.diagnosis.effects import LIBRARY
@@ -178,4 +180,4 @@ def test_a_fit_from_rest_has_the_coefficient_covariance_of_its_exact_misfit_once
     sigma2 = np.mean(ctx.noise_std_m ** 2) * RESIDUAL_SCALE ** 2
     exact = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac)) * sigma2)
     assert np.all(np.abs(np.log(moving / exact)) < np.log(1.5)), (moving, exact)
-    assert np.max(exact / held) > 3.0, (held, exact)
+    assert np.max(np.abs(np.log(exact / held))) > np.log(3.0), (held, exact)
