@@ -1040,7 +1040,7 @@ def _stabilized(ctx: FitContext, coefficients: np.ndarray) -> np.ndarray:
     to its end, though (a 40 Hz pedestal of 0.42 MN/m under bearings of 0.56-0.77 MN/m dragged the nominal
     fit to kxx = -0.17 MN/m, and the line from r0 to it was unstable but for its end point: every pedestal
     start from "r0" was a start from the dragged fit, and none reached the truth's basin); the way to r0's
-    own stable form drops only the whirl-driving cross-coupling (kxy = -kyx = 0.30 MN/m became 0.26), and
+    own stable form shrinks only the whirl-driving cross-coupling (kxy = -kyx = 0.30 MN/m became 0.26), and
     three of the four ladder starts from there reached it (40.0 Hz, damping ratio 0.057, 6.7 kg against
     40 Hz, 0.057, 6.7 kg; direct stiffness within 2 %, cross-coupled within 0.03 MN/m).
     """

@@ -237,6 +237,15 @@ class ClearanceContact(RadialBearingCubic):
     start_stiffness_ratios: ClassVar[tuple[float, ...]] = (1.0 / 3.0, 3.0)
     #: Clearances of the starts: the static point's radius plus these fractions of the orbit's radius.
     start_clearance_offsets: ClassVar[tuple[float, ...]] = (-0.5, 0.0, 0.5)
+    #: Static points of the starts: the centre, and these fractions of the gravity sag on the prior's stiffness
+    #: matrix in each of the four directions (the rig file does not say which way is down): ``s = K^-1 w``, ``w``
+    #: half the rotor's weight, so a cross-coupled bearing sags askew (one record rested at -45 deg, where the
+    #: axis-aligned starts of the radial form never reached). The nominal fit's matrix is not used: a contact
+    #: drags it far (kxx -0.3 MN/m on that record, sags of 350-700 um).
+    start_sag_fractions: ClassVar[tuple[float, ...]] = (0.5, 1.0)
+    #: Contact stiffness of the joint refit's starts, relative to the prior's mean direct stiffness: a contact
+    #: may be much stiffer than the bearing (a stop), which the first pass about the dragged fit rarely sees.
+    refine_stiffness_ratios: ClassVar[tuple[float, ...]] = (1.0, 30.0)
 
     @property
     def form(self) -> str:
@@ -247,16 +256,6 @@ class ClearanceContact(RadialBearingCubic):
         z = ctx.z_nom_m[ctx.mask]
         z = z - z.mean(axis=0)
         return float(max(np.max(np.hypot(z[:, 0], z[:, 1])), np.max(np.hypot(z[:, 2], z[:, 3]))) * 1e6)
-
-    #: Static points of the starts: the centre, and these fractions of the gravity sag on the prior's stiffness
-    #: matrix in each of the four directions (the rig file does not say which way is down): ``s = K^-1 w``, ``w``
-    #: half the rotor's weight, so a cross-coupled bearing sags askew (one record rested at -45 deg, where the
-    #: axis-aligned starts of the radial form never reached). The nominal fit's matrix is not used: a contact
-    #: drags it far (kxx -0.3 MN/m on that record, sags of 350-700 um).
-    start_sag_fractions: ClassVar[tuple[float, ...]] = (0.5, 1.0)
-    #: Contact stiffness of the joint refit's starts, relative to the prior's mean direct stiffness: a contact
-    #: may be much stiffer than the bearing (a stop), which the first pass about the dragged fit rarely sees.
-    refine_stiffness_ratios: ClassVar[tuple[float, ...]] = (1.0, 30.0)
 
     def _contact_points(self, ctx, fractions: tuple[float, ...]) -> list[np.ndarray]:
         load_n = ctx.rig.shaft_mass_kg * GRAVITY_M_S2 / 2.0
