@@ -70,6 +70,14 @@ def delayed(y_m: np.ndarray, v_m_s: np.ndarray | None, delay_s: float, period_s:
 SCAN_SAMPLES = 6
 
 
+#: The channel groups of the one-delay forms (:class:`GroupTimingSkew`): each probe alone (a channel whose
+#: converter or cable lags), then each probe plane (both channels of one acquisition card or one sensor head).
+#: A fault usually delays one channel or one card, and the all-channel form pays for three delays the data
+#: do not need: a probe plane 5 samples late in a steady record without an impact, fitted with four delays,
+#: lost the race to a three-parameter shaft bending (independent seed 7430, case 36).
+DELAY_GROUPS: tuple[tuple[int, ...], ...] = ((0,), (1,), (2,), (3,), (0, 1), (2, 3))
+
+
 @dataclass(frozen=True)
 class TimingSkew(Effect):
     """Sampling skew of each channel against the model's clock: ``y_c(t - tau_c)`` (exact delay, not a derivative).
@@ -81,7 +89,8 @@ class TimingSkew(Effect):
     velocity, so a delay of several samples, up to a quarter revolution, is modelled as well as a
     small one. The search starts from the derivative (first-order) estimate
     ``tau = -<e, v>/<v, v>`` and from a per-channel scan over whole-sample delays
-    (+-:data:`SCAN_SAMPLES`).
+    (+-:data:`SCAN_SAMPLES`). Its other forms (:meth:`variants`) delay one channel or one probe plane by one
+    delay (:class:`GroupTimingSkew`).
     """
 
     name: ClassVar[str] = "timing_skew"
@@ -93,6 +102,24 @@ class TimingSkew(Effect):
     description: ClassVar[str] = "timing skew of each probe channel (whole or fractional samples)"
     nl_names: ClassVar[tuple[str, ...]] = tuple(f"skew_{c}_us" for c in CHANNELS)
 
+    def variants(self):
+        return (self, *(GroupTimingSkew(g) for g in DELAY_GROUPS))
+
+    @property
+    def form(self) -> str:
+        return "a delay per channel"
+
+    def groups(self) -> tuple[tuple[int, ...], ...]:
+        """The channels (indices into :data:`CHANNELS`) that share each delay, one group per parameter."""
+        return ((0,), (1,), (2,), (3,))
+
+    def channel_delays_us(self, nl) -> np.ndarray:
+        """The delay of each of the four channels (us) for the parameters ``nl`` (0 on a channel none names)."""
+        out = np.zeros(4)
+        for g, tau in zip(self.groups(), np.asarray(nl, float)):
+            out[list(g)] = tau
+        return out
+
     def lin_names(self, ctx):
         return ()
 
@@ -100,36 +127,40 @@ class TimingSkew(Effect):
         v = ctx.v_nom_m_s[ctx.mask]
         e = ctx.residual_m[ctx.mask]
         bound = 0.9 * self.nl_bounds(ctx)[1][0]
-        tau = np.array([-(e[:, c] @ v[:, c]) / max(float(v[:, c] @ v[:, c]), 1e-300) for c in range(4)])
-        return [np.clip(tau / UNIT_SKEW_S, -bound, bound), np.clip(self._scan(ctx), -bound, bound), np.zeros(4)]
+        tau = np.array([-sum(float(e[:, c] @ v[:, c]) for c in g) / max(sum(float(v[:, c] @ v[:, c]) for c in g),
+                                                                         1e-300) for g in self.groups()])
+        return [np.clip(tau / UNIT_SKEW_S, -bound, bound), np.clip(self._scan(ctx), -bound, bound),
+                np.zeros(len(self.groups()))]
 
     def _scan(self, ctx) -> np.ndarray:
-        """Per channel, the whole-sample delay (us) that best matches the measured channel to the delayed nominal."""
+        """Per group, the whole-sample delay (us) that best matches its measured channels to the delayed nominal."""
         y, v, measured = ctx.y_nom_m, ctx.v_nom_m_s, ctx.y_m
-        best = np.zeros(4)
-        for c in range(4):
-            costs = []
-            for k in range(-SCAN_SAMPLES, SCAN_SAMPLES + 1):
+        costs = np.zeros((4, 2 * SCAN_SAMPLES + 1))
+        for c in sorted({c for g in self.groups() for c in g}):
+            for j, k in enumerate(range(-SCAN_SAMPLES, SCAN_SAMPLES + 1)):
                 d = measured[:, c] - delayed(y[:, c], v[:, c], k * ctx.period_s, ctx.period_s)
                 d = d[ctx.mask] - np.mean(d[ctx.mask])  # the DC offsets are free
-                costs.append(float(d @ d))
-            best[c] = (int(np.argmin(costs)) - SCAN_SAMPLES) * ctx.period_s / UNIT_SKEW_S
-        return best
+                costs[c, j] = float(d @ d)
+        best = [int(np.argmin(costs[list(g)].sum(axis=0))) - SCAN_SAMPLES for g in self.groups()]
+        return np.asarray(best, float) * ctx.period_s / UNIT_SKEW_S
 
     def nl_bounds(self, ctx):
         b = 0.25 * 2 * np.pi / max(ctx.mean_speed_rad_s, 1.0) / UNIT_SKEW_S  # a quarter revolution
-        return np.full(4, -b), np.full(4, b)
+        n = len(self.groups())
+        return np.full(n, -b), np.full(n, b)
 
     def basis(self, ctx, nl):
         y, v = ctx.y_nom_m, ctx.v_nom_m_s
         off = np.zeros_like(y)
-        for c in range(4):
-            if nl[c] != 0.0:
-                off[:, c] = delayed(y[:, c], v[:, c], nl[c] * UNIT_SKEW_S, ctx.period_s) - y[:, c]
+        for c, tau in enumerate(self.channel_delays_us(nl)):
+            if tau != 0.0:
+                off[:, c] = delayed(y[:, c], v[:, c], tau * UNIT_SKEW_S, ctx.period_s) - y[:, c]
         return off, np.zeros((y.shape[0], 4, 0))
 
     def physical(self, nl, lin):
-        return {f"skew_{ch}_s": float(v * UNIT_SKEW_S) for ch, v in zip(CHANNELS, nl)}
+        delays = self.channel_delays_us(nl)
+        named = sorted({c for g in self.groups() for c in g})
+        return {f"skew_{CHANNELS[c]}_s": float(delays[c] * UNIT_SKEW_S) for c in named}
 
     transforms_signal: ClassVar[bool] = True
 
@@ -139,9 +170,29 @@ class TimingSkew(Effect):
         if out.size == 0:
             return out
         flat = out.reshape(out.shape[0], 4, -1)
-        for c in range(4):
-            if nl[c] == 0.0:
+        for c, tau in enumerate(self.channel_delays_us(nl)):
+            if tau == 0.0:
                 continue
             # every column of the channel at once (the derivative by central differences)
-            flat[:, c, :] = delayed(flat[:, c, :], None, nl[c] * UNIT_SKEW_S, ctx.period_s)
+            flat[:, c, :] = delayed(flat[:, c, :], None, tau * UNIT_SKEW_S, ctx.period_s)
         return flat.reshape(out.shape)
+
+
+@dataclass(frozen=True)
+class GroupTimingSkew(TimingSkew):
+    """One delay shared by a group of channels (:data:`DELAY_GROUPS`: one probe, or both probes of a plane); the
+    other channels are on the model's clock."""
+
+    channels: tuple[int, ...] = (0,)
+    nl_names: ClassVar[tuple[str, ...]] = ("skew_us",)
+
+    def variants(self):
+        return (self,)
+
+    @property
+    def form(self) -> str:
+        names = " and ".join(CHANNELS[c] for c in self.channels)
+        return f"one delay of {names}" + (" (a probe plane)" if len(self.channels) == 2 else "")
+
+    def groups(self) -> tuple[tuple[int, ...], ...]:
+        return (tuple(self.channels),)

@@ -13,7 +13,7 @@ import pytest
 from rotor_estimator.core.config import load_rig_file
 from rotor_estimator.diagnosis.context import build_context, with_coefficients
 from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
-from rotor_estimator.diagnosis.effects import (UNIT_UNBALANCE_KG_M, PedestalFlexibility, ResidualUnbalance,
+from rotor_estimator.diagnosis.effects import (CHANNELS, UNIT_UNBALANCE_KG_M, PedestalFlexibility, ResidualUnbalance,
                                                effect_by_name)
 from rotor_estimator.diagnosis.ranking import _parts
 from rotor_estimator.core.simulator import Impact
@@ -272,3 +272,67 @@ def test_the_pedestal_start_transient_on_a_stiff_foundation_is_the_rigid_one(fou
     fit_ctx = start_in_effect(ctx, [effect])
     assert fit_ctx.design_start_columns_m.shape[2] == 0 and fit_ctx.start_transient
     assert start_in_effect(ctx, [ResidualUnbalance()]) is ctx
+
+
+def test_a_one_delay_form_is_the_per_channel_form_with_that_delay_on_its_channels():
+    """Every one-delay form of the timing skew (one probe, one plane) gives the same output offset and delays
+    another contribution the same way as the per-channel form with its delay on its channels and 0 elsewhere, and
+    reports the delay of its own channels only."""
+    from rotor_estimator.diagnosis.effects import TimingSkew
+    from rotor_estimator.diagnosis.effects.timing_skew import DELAY_GROUPS, GroupTimingSkew
+
+    from rotor_estimator.core.simulator import Scenario, simulate
+
+    rf = load_rig_file()
+    rec = simulate(rf.rig, Scenario(duration_s=0.05, noise_std_m=1e-7), seed=4).recording
+    ctx = build_context(rec, rf.rig, rf.estimator)
+    full = TimingSkew()
+    forms = full.variants()
+    assert [f.groups() for f in forms[1:]] == [(g,) for g in DELAY_GROUPS]
+    other = np.random.default_rng(0).normal(size=(ctx.y_m.shape[0], 4, 3))
+    for form in forms[1:]:
+        assert isinstance(form, GroupTimingSkew) and len(form.nl_names) == 1
+        tau_us = np.array([37.0])
+        as_full = np.zeros(4)
+        as_full[list(form.channels)] = 37.0
+        off, cols = form.basis(ctx, tau_us)
+        off_full, _ = full.basis(ctx, as_full)
+        assert cols.shape[2] == 0
+        np.testing.assert_array_equal(off, off_full)
+        np.testing.assert_array_equal(form.transform(ctx, tau_us, other), full.transform(ctx, as_full, other))
+        assert set(form.physical(tau_us, np.zeros(0))) == {f"skew_{CHANNELS[c]}_s" for c in form.channels}
+        lo, hi = form.nl_bounds(ctx)
+        assert lo.shape == hi.shape == (1,) and all(g.shape == (1,) for g in form.nl_grid(ctx))
+
+
+def test_a_one_probe_map_form_is_its_probes_row_of_the_full_map():
+    """Each one-probe form of the probe map fits that probe's row of its plane's 2x2 map alone: its columns are
+    the full form's columns of those two entries, and its gain and angle read the same as the full form's with
+    the other entries zero (a probe at gain 1.2 turned 15 deg)."""
+    from rotor_estimator.diagnosis.effects.probe_gain_orientation import ProbeGainOrientation
+
+    from rotor_estimator.core.simulator import Scenario, simulate
+
+    rf = load_rig_file()
+    rec = simulate(rf.rig, Scenario(duration_s=0.05, noise_std_m=1e-7), seed=4).recording
+    ctx = build_context(rec, rf.rig, rf.estimator)
+    full = ProbeGainOrientation()
+    _, full_cols = full.basis(ctx, np.zeros(0))
+    g, b = 1.2, np.radians(15.0)
+    for probe, ch in enumerate(CHANNELS):
+        form = ProbeGainOrientation(probe)
+        assert form in full.variants()
+        _, cols = form.basis(ctx, np.zeros(0))
+        entries = [full.lin_names(ctx).index(n) for n in form.lin_names(ctx)]
+        assert len(entries) == 2 and form.n_params(ctx) == 2
+        np.testing.assert_array_equal(cols, full_cols[:, :, entries])
+        # x probe reads g (x cos b + y sin b); y probe g (-x sin b + y cos b): its row minus the identity's
+        row = np.array([g * np.cos(b) - 1, g * np.sin(b)]) if probe % 2 == 0 else np.array([-g * np.sin(b),
+                                                                                            g * np.cos(b) - 1])
+        lin_full = np.zeros(8)
+        lin_full[entries] = row
+        one, everyone = form.physical(np.zeros(0), row), full.physical(np.zeros(0), lin_full)
+        assert set(one) == {f"gain_error_{ch}", f"angle_error_{ch}_deg"}
+        assert one == {k: everyone[k] for k in one}
+        assert math.isclose(one[f"gain_error_{ch}"], 0.2, abs_tol=1e-12)
+        assert math.isclose(one[f"angle_error_{ch}_deg"], 15.0, abs_tol=1e-9)

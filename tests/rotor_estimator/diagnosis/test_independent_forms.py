@@ -236,3 +236,49 @@ def test_a_coupling_offset_on_the_overhang_is_the_2x_and_backward_1x_form_with_a
     r_true = np.asarray(case.label["true_coefficients"])
     direct = [0, 3]
     assert np.all(np.abs(with_backward.coefficients[direct] / r_true[direct] - 1) < 0.15), with_backward.coefficients
+
+
+@pytest.mark.slow
+def test_one_misoriented_probe_is_that_probes_form_with_its_angle_within_its_std():
+    """One probe turned on its mount (the independent generator's single-probe misorientation, steady, a true gap
+    of at least 1.3x): among the probe map's forms, after their joint refits, that probe's own (2 parameters) has
+    the best BIC, it beats the per-channel delay (a 1X phase error it resembles), and its angle is within 3
+    reported std of the truth."""
+    from rotor_estimator.diagnosis.effects import CHANNELS, ProbeGainOrientation, TimingSkew
+
+    case = _case({"kind": "single", "form": "probe_gain_orientation:single_probe_misorientation"}, 7700, "steady",
+                 min_gap=1.3)
+    truth = case.label["effect_params"]["probe_gain_orientation"]
+    probe = CHANNELS.index(truth["channel"])
+    ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)
+    _, bic0, _ = nominal_solution(ctx)
+    forms = {f.probe: _refined(ctx, f, bic0) for f in ProbeGainOrientation().variants()}
+    best = min(forms, key=lambda p: forms[p].bic)
+    assert best == probe, {p: f.delta_bic for p, f in forms.items()}
+    skew = _refined(ctx, TimingSkew(), bic0)
+    assert forms[probe].delta_bic > skew.delta_bic, (forms[probe].delta_bic, skew.delta_bic)
+    name = f"angle_error_{truth['channel']}_deg"
+    angle, std = forms[probe].physical[name], forms[probe].physical_std[name]
+    assert abs(angle - np.degrees(truth["angle_rad"])) < 3 * std, (angle, std, np.degrees(truth["angle_rad"]))
+
+
+@pytest.mark.slow
+def test_a_late_probe_plane_is_the_one_plane_delay_with_its_delay_within_its_std():
+    """Both probes of one plane sampled whole samples late (the independent generator's one-plane delay, steady,
+    without an impact, a true gap of at least 1.5x): among the timing skew's forms, after their joint refits, the
+    late plane's one delay has the best BIC, and its delay is within 3 reported std of the truth."""
+    from rotor_estimator.diagnosis.effects import TimingSkew
+
+    case = _case({"kind": "single", "form": "timing_skew:whole_sample_delay:one_plane", "impact": False}, 7800,
+                 "steady", min_gap=1.5)
+    truth = case.label["effect_params"]["timing_skew"]
+    ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)
+    _, bic0, _ = nominal_solution(ctx)
+    fits = [_refined(ctx, f, bic0) for f in TimingSkew().variants()]
+    best = min(fits, key=lambda f: f.bic)
+    assert set(best.physical) == {f"skew_{ch}_s" for ch in truth["channels"]}, [(f.effect.form, f.delta_bic)
+                                                                               for f in fits]
+    name = f"skew_{truth['channels'][0]}_s"
+    delay_s = truth["delay_samples"] / case.rig_file.rig.sample_rate_hz
+    assert abs(best.physical[name] - delay_s) < 3 * best.physical_std[name], (best.physical[name],
+                                                                              best.physical_std[name], delay_s)
