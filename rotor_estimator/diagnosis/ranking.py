@@ -280,6 +280,49 @@ def _base_single(pool: list["EffectFit"], pair: "EffectFit") -> "EffectFit":
     return next(f for f in pool if f.name == pair.base[0] and (form is None or f.effect == form))
 
 
+def _form(fit: "EffectFit", by_name: dict[str, Effect]) -> Effect:
+    """The form ``fit`` was fitted in: its own effect, else the form that stands for its name."""
+    return fit.effect if fit.effect is not None else by_name[fit.name]
+
+
+def planned_pairs(bases: list["EffectFit"], simpler: list["EffectFit"], library: tuple[Effect, ...],
+                  by_name: dict[str, Effect]) -> list[tuple["EffectFit", Effect]]:
+    """The pairs' first passes to fit, each as ``(base single, partner in its form)``.
+
+    In this order:
+    1. every other effect of ``library``, in the form that stands for it (``by_name``), on each of ``bases`` in
+       turn, each pair of names once (on the first base that has it);
+    2. every signal transform on each base's simpler form (:func:`simpler_forms`);
+    3. each partner that has a simpler form in that form too, on the base its pair of names was first fitted on.
+
+    Why 3: the form that won the partner's single race may have won it by absorbing what the base explains (a
+    full probe map's eight gains take up part of a runout's 1X; the one-probe map fits only the probe that is
+    off). Seen on an independent record of a keyphasor offset with one probe's angle off: with runout, the pair
+    with the full map gained 30 in BIC over runout alone, the pair with the one-probe map 84, its angle
+    -6.7 +- 0.7 deg (true -7.0).
+    """
+    plan: list[tuple[EffectFit, Effect]] = []
+    first_base: dict[frozenset, EffectFit] = {}
+    for a in bases:
+        for e in (by_name[x.name] for x in library):
+            key = frozenset((a.name, e.name))
+            if e.name == a.name or key in first_base:
+                continue
+            first_base[key] = a
+            plan.append((a, e))
+    base_names = {b.name for b in bases}
+    for a in (s for s in simpler if s.name in base_names):
+        plan.extend((a, by_name[x.name]) for x in library
+                    if by_name[x.name].transforms_signal and x.name != a.name)
+    simpler_form = {s.name: s.effect for s in simpler if s.effect is not None}
+    for key, a in first_base.items():
+        (partner,) = key - {a.name}
+        form = simpler_form.get(partner)
+        if form is not None:
+            plan.append((a, form))
+    return plan
+
+
 def _pair_first_pass(ctx: FitContext, effect: Effect, base: "EffectFit", reference_bic: float) -> list["EffectFit"]:
     """``effect`` fitted on the single ``base`` in its context, structural starts in the grid too (a base changes
     what the effect must explain): one pair, or none when the fit is singular or out of its domain."""
@@ -1219,18 +1262,18 @@ def pairs_to_refit(pairs: list[EffectFit], pool: list[EffectFit], top_name: str,
     # refitted from the prior r0 as well as from the nominal fit, explains nothing (delta BIC <= 0): that refit
     # is not dragged, so a structure the record shows is seen there (seed 7427: these refits were 5.8 % of the
     # wall time and gave no pair among the five best)
-    shown = [(i, p) for i, p in enumerate(pairs) if by_name[p.name].pair_always_refitted
+    shown = [(i, p) for i, p in enumerate(pairs) if _form(p, by_name).pair_always_refitted
              and evidence.get(p.name, 0.0) > 0.0]
     add((i for i, p in shown if p.base == (top_name,)), on_top)
-    add((i for i, p in shown if _carries_base(by_name[p.name], (_base_single(pool, p),))), carrying)
+    add((i for i, p in shown if _carries_base(_form(p, by_name), (_base_single(pool, p),))), carrying)
     # every signal transform (a channel delay) on any base: its first pass delays the base's model about the
     # coefficients the base's single fit dragged to absorb the delay too (misalignment with a 100 us skew ranked
     # 11th in its first pass and was called runout)
-    add((i for i, p in enumerate(pairs) if by_name[p.name].transforms_signal), transform)
+    add((i for i, p in enumerate(pairs) if _form(p, by_name).transforms_signal), transform)
     # every pair of an effect's form with the effect that carries what the form leaves out (its companion): the
     # form's single fit dragged the coefficients to absorb that part (a coupling's forward 1X), so the pair's
     # first pass, linearized there, cannot show it
-    add((i for i, p in enumerate(pairs) if _companions(by_name[p.name], _base_single(pool, p).effect)), companion)
+    add((i for i, p in enumerate(pairs) if _companions(_form(p, by_name), _base_single(pool, p).effect)), companion)
     return {i: tuple(r) for i, r in sorted(reasons.items())}
 
 
@@ -1333,19 +1376,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     if best is not None and second_stage:
         say(f"stage 4/4: pairs on the leading singles (top single {best.name})")
         bases = [f for f in singles[:PAIR_BASES] if f.delta_bic >= threshold]
-        seen = set()
-        for a in bases:
-            for e in (by_name[x.name] for x in library):
-                key = frozenset((a.name, e.name))
-                if e.name == a.name or key in seen:
-                    continue
-                seen.add(key)
-                pairs.extend(_pair_first_pass(ctx, e, a, top.bic))
-        # a signal transform also on each base's simpler form (:func:`simpler_forms`)
-        base_names = {b.name for b in bases}
-        for a in (s for s in simpler if s.name in base_names):
-            for e in (by_name[x.name] for x in library if by_name[x.name].transforms_signal and x.name != a.name):
-                pairs.extend(_pair_first_pass(ctx, e, a, top.bic))
+        for a, e in planned_pairs(bases, simpler, library, by_name):
+            pairs.extend(_pair_first_pass(ctx, e, a, top.bic))
         pool = singles + simpler
         pairs.sort(key=lambda f: f.bic)
         for i, reasons in pairs_to_refit(pairs, pool, top.name, by_name,
@@ -1353,8 +1385,8 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             p = pairs[i]
             a = _base_single(pool, p)
             actx = a.ctx or ctx
-            nl_starts = tuple(by_name[p.name].refine_starts(actx))
-            eff = by_name[p.name]
+            eff = _form(p, by_name)
+            nl_starts = tuple(eff.refine_starts(actx))
             from_prior = (actx.prior_coefficients,) if eff.starts_from_prior or eff.transforms_signal \
                 or _companions(eff, a.effect) else ()
             # a pedestal or hardening also starts from the prior r0 at each of its structural starts, as its
@@ -1362,7 +1394,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             # invisible (the bending mode's 15 starts are left out for time: it is not pair_always_refitted)
             pairs_from_prior = tuple((actx.prior_coefficients, s) for s in nl_starts) \
                 if eff.starts_from_prior and eff.pair_always_refitted else ()
-            pairs[i] = refine(actx, by_name[p.name], p, (a,), reference_bic=top.bic, extra_starts=from_prior,
+            pairs[i] = refine(actx, eff, p, (a,), reference_bic=top.bic, extra_starts=from_prior,
                               nl_starts=nl_starts, start_pairs=pairs_from_prior,
                               evidence_starts=tuple(eff.evidence_starts(actx)),
                               max_nfev=REFINE_NFEV_MULTISTART if nl_starts else REFINE_NFEV, why=" + ".join(reasons))
@@ -1370,7 +1402,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         # the leading pairs continued to convergence like the top single they must beat (FINAL_NFEV)
         for i, p in enumerate(pairs[:PAIR_REFINE]):
             a = _base_single(pool, p)
-            pairs[i] = refine(a.ctx or ctx, by_name[p.name], p, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV,
+            pairs[i] = refine(a.ctx or ctx, _form(p, by_name), p, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV,
                               polish_nfev=0, why="leading pair converged")
         pairs.sort(key=lambda f: f.bic)
         # the selected pair: the smallest BIC among those that beat the top single by the threshold, predict
@@ -1381,16 +1413,19 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         if cand is not None:
             a_fit = _base_single(pool, cand)
             say("verdict: the selected pair continued to convergence")
-            cand = refine(a_fit.ctx or ctx, by_name[cand.name], cand, (a_fit,), reference_bic=top.bic,
+            cand = refine(a_fit.ctx or ctx, _form(cand, by_name), cand, (a_fit,), reference_bic=top.bic,
                           max_nfev=VERDICT_NFEV, polish_nfev=0, why="verdict")
             say("coefficient uncertainty: likelihood profiles of the verdict's model")
             cand = with_coupled_covariance(cand, (a_fit,))
-            cand = _parameters_widened(_profiled(cand, a_fit.ctx or ctx, by_name[cand.name], (a_fit,)))
+            cand = _parameters_widened(_profiled(cand, a_fit.ctx or ctx, _form(cand, by_name), (a_fit,)))
             rank = {f.name: i for i, f in enumerate(singles)}
             a_name, b_name = cand.base[0], cand.name
             first, other = (a_name, b_name) if rank[a_name] <= rank[b_name] else (b_name, a_name)
+            # the partner's single in the form the pair fitted it in (its simpler form, when that pair won)
+            b_fit = next((f for f in pool if f.name == b_name and f.effect == cand.effect),
+                         next(f for f in singles if f.name == b_name))
             joint = {n: _joint_parameters(f, cand, f.effect or by_name[n])
-                     for n, f in ((a_name, a_fit), (b_name, next(f for f in singles if f.name == b_name)))}
+                     for n, f in ((a_name, a_fit), (b_name, b_fit))}
             best, o = joint[first], joint[other]
             second = replace(cand, name=other, base=(first,), delta_bic=best.bic - cand.bic, nl=o.nl,
                              nl_std=o.nl_std, lin=o.lin, lin_std=o.lin_std, physical=o.physical,

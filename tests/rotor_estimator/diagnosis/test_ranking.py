@@ -714,6 +714,39 @@ def test_a_refit_is_reported_to_the_ledger_once_with_its_bic_before_and_after_an
     assert e["bic_before"] == first.bic and e["bic_after"] == watched.bic and e["seconds"] > 0.0
 
 
+def test_the_pairs_planned_are_each_pair_of_names_once_then_transforms_and_partners_in_their_simpler_forms():
+    """planned_pairs: every other effect on each base in its kept form, a pair of names only on the first base
+    that has it; then each signal transform on a base's simpler form; then each partner with a simpler form in
+    that form, on the base its pair of names was first fitted on (never on a later base, never itself)."""
+    from rotor_estimator.diagnosis.effects import LIBRARY
+    from rotor_estimator.diagnosis.ranking import planned_pairs
+
+    library = tuple(LIBRARY)
+    by_name = {e.name: e for e in library}
+    names = [e.name for e in library]
+    skew = next(e for e in library if e.transforms_signal)
+    runout, probe_map, unbalance = (next(e for e in library if e.name == n)
+                                    for n in ("probe_runout", "probe_gain_orientation", "residual_unbalance"))
+
+    def fit(effect):
+        return SimpleNamespace(name=effect.name, effect=effect)
+
+    one_probe = fit(probe_map.variants()[-1])  # a stand-in simpler form of the probe map
+    bases = [fit(runout), fit(probe_map), fit(unbalance)]
+    plan = planned_pairs(bases, [one_probe], library, by_name)
+    kept = [(a.name, e.name) for a, e in plan if e is by_name[e.name] and a.effect is by_name[a.name]]
+    n_each = len(names) - 1
+    assert kept[:n_each] == [("probe_runout", n) for n in names if n != "probe_runout"]
+    assert kept[n_each:2 * n_each - 1] == [("probe_gain_orientation", n) for n in names
+                                           if n not in ("probe_runout", "probe_gain_orientation")]
+    assert len({frozenset(p) for p in kept}) == len(kept)  # each pair of names once
+    transforms = [(a, e) for a, e in plan if a is one_probe]
+    assert transforms == [(one_probe, skew)]
+    partners = [(a.name, e) for a, e in plan if e is one_probe.effect]
+    assert partners == [("probe_runout", one_probe.effect)]  # on runout, where the pair of names was first fitted
+    assert plan[-1] == (bases[0], one_probe.effect)
+
+
 def _pair_search_fixture():
     """Stand-ins of a pair search: misalignment the top single, probe runout and a residual unbalance the other
     bases, and nine pairs in their first pass's order; with the library's own effect declarations."""
@@ -729,7 +762,8 @@ def _pair_search_fixture():
             single("misalignment", coupling)]
 
     def pair(name, base, form=None):
-        return SimpleNamespace(name=name, base=(base,), base_effects=(form,) if form is not None else ())
+        return SimpleNamespace(name=name, base=(base,), base_effects=(form,) if form is not None else (),
+                               effect=by_name[name])
 
     pairs = [pair("probe_runout", "misalignment", by_name["misalignment"]),    # 0-2: the best three
              pair("residual_unbalance", "misalignment", by_name["misalignment"]),
