@@ -1319,7 +1319,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     for f in singles:  # the rank of each effect by its best form (forms of one effect share a place)
         name_rank.setdefault(f.name, len(name_rank))
     for i, f in enumerate(singles):
-        eff = f.effect or by_name[f.name]
+        eff = _form(f, by_name)
         always = eff.refit_always
         nl_starts = tuple(eff.refine_starts(ctx)) if (f.delta_bic > 0 or gap) else ()
         why = [w for w, holds in (("leader", name_rank[f.name] < REFINE_TOP and f.delta_bic > 0),
@@ -1336,7 +1336,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     multistart = list(singles)
     for i, f in enumerate(singles):
         if f.name in converged_forms:
-            singles[i] = refine(ctx, f.effect or by_name[f.name], f, reference_bic=bic0, max_nfev=FINAL_NFEV,
+            singles[i] = refine(ctx, _form(f, by_name), f, reference_bic=bic0, max_nfev=FINAL_NFEV,
                                 polish_nfev=0, start_pairs=best_other_form_start(multistart, f),
                                 why="form of a leader converged")
     # each effect's best form (by BIC after its joint refit) stands for it from here on
@@ -1424,7 +1424,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             # the partner's single in the form the pair fitted it in (its simpler form, when that pair won)
             b_fit = next((f for f in pool if f.name == b_name and f.effect == cand.effect),
                          next(f for f in singles if f.name == b_name))
-            joint = {n: _joint_parameters(f, cand, f.effect or by_name[n])
+            joint = {n: _joint_parameters(f, cand, _form(f, by_name))
                      for n, f in ((a_name, a_fit), (b_name, b_fit))}
             best, o = joint[first], joint[other]
             second = replace(cand, name=other, base=(first,), delta_bic=best.bic - cand.bic, nl=o.nl,
