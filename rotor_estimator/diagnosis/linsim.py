@@ -47,25 +47,52 @@ def _project_outputs(states, c_out, out):
 
 
 @njit(cache=True)
+def _transposed(phi, g1, g2):
+    """``Phi^T``, ``Gamma1^T``, ``Gamma2^T`` per block, so that the recursions' inner loops run along contiguous
+    memory over the state index: each state's sum keeps its order (bit for bit the same), and the
+    independent sums of the states proceed side by side (1.75x for 28 states, where each waited on its own)."""
+    n_blocks, n, m = g1.shape
+    phi_t = np.empty((n_blocks, n, n))
+    g1_t = np.empty((n_blocks, m, n))
+    g2_t = np.empty((n_blocks, m, n))
+    for b in range(n_blocks):
+        for i in range(n):
+            for j in range(n):
+                phi_t[b, j, i] = phi[b, i, j]
+            for j in range(m):
+                g1_t[b, j, i] = g1[b, i, j]
+                g2_t[b, j, i] = g2[b, i, j]
+    return phi_t, g1_t, g2_t
+
+
+@njit(cache=True)
 def _propagate(phi, g1, g2, block, us, uz, q0, c_out):
     """Run the FOH/ZOH recursion; returns outputs (N, p) = C q and the states (N, n)."""
     n_samples = us.shape[0]
     n = q0.shape[0]
     m = us.shape[1]
     p = c_out.shape[0]
+    phi_t, g1_t, g2_t = _transposed(phi, g1, g2)
     states = np.empty((n_samples, n))
     out = np.empty((n_samples, p))
+    acc = np.empty(n)
     for i in range(n):
         states[0, i] = q0[i]
     for k in range(n_samples - 1):
         b = block[k]
         for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += phi[b, i, j] * states[k, j]
-            for j in range(m):
-                acc += g1[b, i, j] * (us[k, j] + uz[k, j]) + g2[b, i, j] * (us[k + 1, j] - us[k, j])
-            states[k + 1, i] = acc
+            acc[i] = 0.0
+        for j in range(n):
+            s = states[k, j]
+            for i in range(n):
+                acc[i] += phi_t[b, j, i] * s
+        for j in range(m):
+            v = us[k, j] + uz[k, j]
+            d = us[k + 1, j] - us[k, j]
+            for i in range(n):
+                acc[i] += g1_t[b, j, i] * v + g2_t[b, j, i] * d
+        for i in range(n):
+            states[k + 1, i] = acc[i]
     _project_outputs(states, c_out, out)
     return out, states
 
@@ -424,22 +451,28 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, clea
     pred = np.empty(n)
     for i in range(n):
         states[0, i] = q0[i]
+    phi_t, g1_t, g2_t = _transposed(phi, g1, g2)
     for k in range(n_samples - 1):
         b = block[k]
         _bearing_force(states, k, z0, k3, static, clearance, radial, fk)
         for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += phi[b, i, j] * states[k, j]
-            for j in range(m):
-                acc += g1[b, i, j] * (us[k, j] + uz[k, j] + fk[j]) + g2[b, i, j] * (us[k + 1, j] - us[k, j])
-            pred[i] = acc
+            pred[i] = 0.0
+        for j in range(n):
+            s = states[k, j]
+            for i in range(n):
+                pred[i] += phi_t[b, j, i] * s
+        for j in range(m):
+            v = us[k, j] + uz[k, j] + fk[j]
+            d = us[k + 1, j] - us[k, j]
+            for i in range(n):
+                pred[i] += g1_t[b, j, i] * v + g2_t[b, j, i] * d
         _bearing_force(pred.reshape(1, n), 0, z0, k3, static, clearance, radial, f1)
         for i in range(n):
-            acc = pred[i]
-            for j in range(m):
-                acc += g2[b, i, j] * (f1[j] - fk[j])
-            states[k + 1, i] = acc
+            states[k + 1, i] = pred[i]
+        for j in range(m):
+            df = f1[j] - fk[j]
+            for i in range(n):
+                states[k + 1, i] += g2_t[b, j, i] * df
     _project_outputs(states, c_out, out)
     return out, states
 

@@ -179,3 +179,47 @@ def test_a_harmonic_force_drives_the_recursion_at_its_exact_steady_state_amplitu
     x = 0.5 * 2 * w * h
     gain = np.abs(np.fft.rfft(foh_compensated(u)[:, 0])).max() / np.abs(np.fft.rfft(u[:, 0])).max()
     assert abs(gain * (np.sin(x) / x) ** 2 - 1.0) < 2e-3 and abs(gain - 1.0 - np.sin(x) ** 2 / 3.0) < 1e-3
+
+
+def test_the_compiled_recursions_equal_a_plain_loop_of_their_equations_on_several_speed_blocks():
+    """``_propagate`` (the FOH/ZOH recursion ``q+ = Phi q + G1 (u_s + u_z) + G2 du_s``) and ``_propagate_cubic``
+    (the same with the bearing force first-order held by a Heun step) agree, to rounding, with a plain NumPy loop
+    written from their docstrings' equations: 28 states (the flexible shaft's size), three speed blocks, a step
+    input, and each of the cubic's three force laws. Their loops run transposed for speed; the equations stay."""
+    from rotor_estimator.diagnosis.linsim import _propagate, _propagate_cubic
+
+    rng = np.random.default_rng(5)
+    n_samples, n, m = 600, 28, 4
+    phi = rng.normal(size=(3, n, n)) * 0.25 / np.sqrt(n)
+    g1, g2 = rng.normal(size=(3, n, m)), rng.normal(size=(3, n, m))
+    block = np.repeat(np.arange(3), n_samples // 3).astype(np.int64)
+    us, uz = rng.normal(size=(n_samples, m)), np.zeros((n_samples, m))
+    uz[100:103] = rng.normal(size=(3, m))
+    q0, c_out = rng.normal(size=n), rng.normal(size=(6, n))
+    out, states = _propagate(phi, g1, g2, block, us, uz, q0, c_out)
+    q = q0.copy()
+    for k in range(n_samples - 1):
+        b = block[k]
+        q = phi[b] @ q + g1[b] @ (us[k] + uz[k]) + g2[b] @ (us[k + 1] - us[k])
+        assert np.allclose(states[k + 1], q, rtol=1e-12, atol=1e-12 * np.abs(q).max())
+    assert np.allclose(out, states @ c_out.T, rtol=1e-12, atol=1e-12 * np.abs(out).max())
+
+    k3 = np.abs(rng.normal(size=m)) * 0.05
+    static = rng.normal(size=m) * 0.2
+    clearance = np.abs(rng.normal(size=m)) * 0.1
+    small = dict(phi=0.9 * phi, g1=0.1 * g1, g2=0.1 * g2, us=0.1 * us, uz=0.1 * uz, q0=0.1 * q0)
+    for radial in (0, 1, 2):
+        out_c, states_c = _propagate_cubic(small["phi"], small["g1"], small["g2"], block, small["us"], small["uz"],
+                                           small["q0"], c_out, k3, 2, static, clearance, radial)
+        assert np.all(np.isfinite(states_c)) and np.any(states_c[-1])
+        q = small["q0"].copy()
+        f_k, f_1 = np.empty(m), np.empty(m)
+        for k in range(n_samples - 1):
+            b = block[k]
+            _bearing_force(q.reshape(1, n), 0, 2, k3, static, clearance, radial, f_k)
+            pred = small["phi"][b] @ q + small["g1"][b] @ (small["us"][k] + small["uz"][k] + f_k) \
+                + small["g2"][b] @ (small["us"][k + 1] - small["us"][k])
+            _bearing_force(pred.reshape(1, n), 0, 2, k3, static, clearance, radial, f_1)
+            q = pred + small["g2"][b] @ (f_1 - f_k)
+            assert np.allclose(states_c[k + 1], q, rtol=1e-11, atol=1e-11 * np.abs(q).max())
+        assert np.allclose(out_c, states_c @ c_out.T, rtol=1e-12, atol=1e-12 * np.abs(out_c).max())
