@@ -78,6 +78,7 @@ def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic, de
     ``decimate``: the diagnosis's own (``diagnose(..., decimate=...)``)."""
     import warnings
 
+    from rotor_estimator.bench.reference_workload import reference_seconds
     from rotor_estimator.core.config import load_rig_file
     from rotor_estimator.diagnosis.api import diagnose
     from rotor_estimator.diagnosis.ranking import REFIT_LEDGER
@@ -85,6 +86,7 @@ def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic, de
     warnings.simplefilter("ignore")
     d = Path(case_dir)
     rig_file = load_rig_file(d / "rig.yaml")
+    reference_before = reference_seconds()
     t0 = clock()
     events: list[tuple[float, str]] = [(0.0, "reading the record")]
     progress = lambda line: events.append((clock() - t0, line))  # noqa: E731
@@ -98,8 +100,10 @@ def diagnose_case(case_dir: str, clock: Callable[[], float] = time.monotonic, de
     finally:
         REFIT_LEDGER.reset(ledger)
     seconds = clock() - t0
+    # the fixed workload timed beside the case, before and after it (:mod:`.reference_workload`)
+    reference = 0.5 * (reference_before + reference_seconds())
     return {**result_of_summary(d.name, s, seconds), "stage_seconds": stage_seconds(events, seconds),
-            "refits": refits}
+            "refits": refits, "reference_seconds": reference}
 
 
 def stage_name(line: str) -> str:
@@ -172,6 +176,19 @@ def time_by_stage(results: list[dict]) -> dict[str, float]:
     if whole <= 0.0:
         return {}
     return dict(sorted(((k, v / whole) for k, v in totals.items()), key=lambda kv: -kv[1]))
+
+
+def reference_units(results: list[dict]) -> dict:
+    """The cases' seconds over the reference workload's timed beside each (:mod:`.reference_workload`): their
+    median (the cost per case in reference units, comparable across machines and loads) and the reference's
+    median seconds; empty when no case carries a reference (results from before it)."""
+    pairs = [(float(r["seconds"]), float(r["reference_seconds"])) for r in results
+             if r.get("reference_seconds") and "seconds" in r]
+    if not pairs:
+        return {}
+    return {"median_reference_units_per_case": float(np.median([s / ref for s, ref in pairs])),
+            "reference_seconds_median": float(np.median([ref for _, ref in pairs])),
+            "n_cases_with_reference": len(pairs)}
 
 
 def result_of_summary(case: str, s: dict, seconds: float) -> dict:
@@ -273,6 +290,7 @@ def score(results: list[dict], labels: dict, rigs: dict | None = None) -> dict:
                                     else float("nan")),
             "mean_seconds_per_case": float(arr("seconds").mean()),
             "median_seconds_per_case": float(np.median(arr("seconds"))),
+            **reference_units(results),
             "time_share_by_stage": time_by_stage(results), "refit_yield": refit_yield(results),
             "rows": rows, "confusion": _confusion(rows)}
 
@@ -417,6 +435,10 @@ def _format_one(s: dict) -> str:
             f"{100 * s['shrink_within_20pct']:.1f} % of detected cases",
             f"time per case            median {s['median_seconds_per_case']:.1f} s, "
             f"mean {s['mean_seconds_per_case']:.1f} s (wall clock of each case's diagnosis, as run: see --jobs)"]
+    if s.get("n_cases_with_reference"):
+        out.append(f"time in reference units  median {s['median_reference_units_per_case']:.0f} x the fixed NumPy "
+                   f"workload timed beside each case in its process (median {1e3 * s['reference_seconds_median']:.0f}"
+                   f" ms; {s['n_cases_with_reference']} of {s['cases']} cases): comparable across machines and loads")
     if s.get("time_share_by_stage"):
         out.append("time by stage            " + ", ".join(f"{name} {100 * share:.0f} %" for name, share
                                                             in s["time_share_by_stage"].items()))

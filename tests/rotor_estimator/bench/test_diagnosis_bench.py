@@ -345,3 +345,27 @@ def test_refit_ledger_assigns_each_refit_its_stage_and_the_yield_counts_time_in_
     assert ("refits by reason         stage 2: structural starts 30.0 % of the wall time (100 % idle); stage 2: "
             "leader 10.0 % of the wall time (0 % idle); stage 4: signal transform 10.0 % of the wall time (100 % "
             "idle)") in format_score(score([r], {"case_001": _label([])}))
+
+
+def test_reference_units_are_each_cases_seconds_over_its_reference_and_cases_without_one_are_left_out():
+    """The score's time in reference units is the median over the cases of seconds / the reference workload's
+    seconds timed beside each (a case twice as long on a machine twice as slow costs the same units); a case
+    from before the reference (none recorded) is left out and counted; the text report prints the figure. The
+    workload is deterministic (the same checksum each run) and ``reference_seconds`` is the median of its runs
+    (one run caught by other load does not set it)."""
+    from rotor_estimator.bench.reference_workload import reference_seconds, run_workload
+
+    base = {"best_effect": "none", "top_two": ["none"], "before": 1e-6, "shrink_ratio": 1.0}
+    results = [{**base, "case": "case_001", "seconds": 100.0, "reference_seconds": 0.1},
+               {**base, "case": "case_002", "seconds": 400.0, "reference_seconds": 0.2},  # slower machine
+               {**base, "case": "case_003", "seconds": 50.0, "reference_seconds": 0.1},
+               {**base, "case": "case_004", "seconds": 9.0}]  # before the reference
+    s = score(results, {r["case"]: _label([]) for r in results})
+    assert s["median_reference_units_per_case"] == 1000.0  # of 1000, 2000, 500
+    assert s["reference_seconds_median"] == 0.1 and s["n_cases_with_reference"] == 3
+    assert "time in reference units  median 1000 x" in format_score(s) and "3 of 4 cases" in format_score(s)
+    assert "time in reference units" not in format_score(score(results[3:], {"case_004": _label([])}))
+
+    assert run_workload() == run_workload()
+    ticks = iter([0.0, 1.0, 10.0, 10.2, 20.0, 20.3])  # runs of 1.0, 0.2 and 0.3 s
+    assert abs(reference_seconds(3, clock=lambda: next(ticks)) - 0.3) < 1e-12
