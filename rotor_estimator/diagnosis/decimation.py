@@ -13,7 +13,11 @@ The filter is a zero-phase (symmetric, centred) Kaiser-windowed half-band FIR at
 ``2 * HALF_TAPS_PER_FACTOR * q + 1`` taps: flat to 1e-5 up to 0.45 of the new sampling rate, below 1.3e-5 from
 0.55 of it (what folds onto 0.45 and below), and -6 dB at the new Nyquist. So the white noise stays white up to
 0.45 of the new rate, where the diagnosis estimates the noise floor (:func:`.context.noise_std_from_spectrum`).
-The first and last ``HALF_TAPS_PER_FACTOR * q`` samples, where the filter would run off the record, are dropped.
+The first and last ``HALF_TAPS_PER_FACTOR * q`` samples, where the filter would run off the record, are dropped
+when they are steady and hold no impact (the rest of the record repeats them); otherwise (a start from rest, an
+impact there) they are kept unfiltered on the same grid, every ``q``-th raw sample: their in-band signal is exact
+and their noise variance ``q`` times the filtered samples' (:func:`edge_handling`). Such a record was kept at
+the full rate before, at four times the cost.
 The impact force, held over each sample period (:class:`.core.recording.RigRecording`), is held over each new
 period at its mean there, which keeps its impulse. The keyphasor stamps are kept as they are.
 """
@@ -66,10 +70,9 @@ def largest_factor(sample_rate_hz: float, max_speed_hz: float, limit: int = 8) -
 def automatic_factor(recording: RigRecording) -> tuple[int, str]:
     """The factor ``decimate="auto"`` (the diagnosis's default) picks, and why: the largest of at most
     ``AUTO_MAX_FACTOR`` that keeps ten times the running speed (from the keyphasor) in the flat band, while the
-    filter's dropped edges are at most ``AUTO_MAX_EDGE_FRACTION`` of the record and hold neither an impact force
-    (the impact response carries most of what a record says on the coefficients) nor a transient
-    (:func:`edge_transient_ratio`; a start from rest). 1 for a record without keyphasor pulses (its band cannot
-    be checked)."""
+    filter's edges are at most ``AUTO_MAX_EDGE_FRACTION`` of the record (a short record keeps its rate). An impact
+    or a transient in the edges does not stop it: :func:`decimated` keeps such edges unfiltered
+    (:func:`edge_handling`). 1 for a record without keyphasor pulses (its band cannot be checked)."""
     n = len(recording)
     fastest_hz = _fastest_speed_hz(recording)
     if fastest_hz is None:
@@ -80,19 +83,33 @@ def automatic_factor(recording: RigRecording) -> tuple[int, str]:
     for factor in range(q, 1, -1):
         half = HALF_TAPS_PER_FACTOR * factor
         if 2 * half > AUTO_MAX_EDGE_FRACTION * n:
-            why = f"a factor of {factor} would drop {2 * half} of the {n} samples at the filter's edges"
-        elif np.any(recording.impact_force_n[:half] != 0.0) or np.any(recording.impact_force_n[n - half:] != 0.0):
-            why = f"a factor of {factor} would drop an impact in the filter's edges"
-        elif not np.isfinite(ratio := edge_transient_ratio(recording, half)):
-            why = (f"a factor of {factor}: the filter's edges cannot be checked for a transient (non-finite probe "
-                   "samples there, or too short a record)")
-        elif ratio > AUTO_MAX_EDGE_TRANSIENT_RATIO:
-            why = (f"a factor of {factor} would drop a transient in the filter's edges (the edges differ from the "
-                   f"record a revolution on by {ratio:.1f}x the noise: a start from rest, a speed change)")
+            why = (f"a factor of {factor} would filter only {n - 2 * half} of the {n} samples (the filter's edges: "
+                   f"{half} at each end)")
         else:
             return factor, (f"10x the speed ({10 * fastest_hz:.0f} Hz) stays below {FLAT_FRACTION:g} of the new "
                             f"rate")
     return 1, why
+
+
+def edge_handling(recording: RigRecording, factor: int) -> tuple[str, str]:
+    """What :func:`decimated` does with the first and last ``HALF_TAPS_PER_FACTOR * factor`` samples, where the
+    zero-phase filter would run off the record, and why: ``"drop"`` them when they are steady (periodic to
+    within ``AUTO_MAX_EDGE_TRANSIENT_RATIO`` x the noise, :func:`edge_transient_ratio`) and hold no impact (the
+    record repeats what they say); else ``"keep"`` them unfiltered, every ``factor``-th sample on the same grid
+    (an impact, a start from rest or a speed change there carries much of what a record says on the
+    coefficients, and an edge that cannot be checked is kept). A kept edge's samples hold their in-band signal
+    exactly and ``factor`` x the filtered samples' noise variance (plain subsampling folds the band above in)."""
+    n = len(recording)
+    half = HALF_TAPS_PER_FACTOR * int(factor)
+    if np.any(recording.impact_force_n[:half] != 0.0) or np.any(recording.impact_force_n[n - half:] != 0.0):
+        return "keep", "an impact in them"
+    ratio = edge_transient_ratio(recording, half)
+    if not np.isfinite(ratio):
+        return "keep", "they cannot be checked for a transient (non-finite probe samples, or too few pulses)"
+    if ratio > AUTO_MAX_EDGE_TRANSIENT_RATIO:
+        return "keep", (f"a transient in them (they differ from the record a revolution on by {ratio:.1f}x the "
+                        "noise: a start from rest, a speed change)")
+    return "drop", f"steady (within {ratio:.1f}x the noise of the record a revolution on) and without an impact"
 
 
 def edge_transient_ratio(recording: RigRecording, half: int) -> float:
@@ -176,11 +193,23 @@ def decimated(recording: RigRecording, factor: int) -> RigRecording:
                 f"from the keyphasor) above {FLAT_FRACTION:g} of the new rate ({1.0 / period_s / factor:.0f} Hz); "
                 f"this record allows at most {allowed}")
     taps = half_band_taps(factor)
-    probes = np.stack([np.convolve(recording.probes_m[:, i], taps, mode="valid") for i in range(4)], axis=1)
-    keep = np.arange(0, probes.shape[0] - factor + 1, factor)  # probes[j] is the filtered sample half + j
-    force = recording.impact_force_n[half:n - half]
-    held = np.mean(np.stack([force[keep + j] for j in range(factor)]), axis=0)
-    meta = {**recording.meta, "decimation": {"factor": factor, "filter_taps": int(taps.size),
-                                             "dropped_edge_samples": half}}
-    return RigRecording(recording.stamps_ns[half:n - half][keep], probes[keep], recording.pulse_stamps_ns, held,
+    filtered = np.stack([np.convolve(recording.probes_m[:, i], taps, mode="valid") for i in range(4)], axis=1)
+    # filtered[j] is the filtered sample half + j: the kept grid is every factor-th sample from half
+    inner = half + np.arange(0, filtered.shape[0] - factor + 1, factor)
+    edges, edges_why = edge_handling(recording, factor)
+    if edges == "keep":
+        head = np.arange(half - factor, -1, -factor)[::-1]
+        tail = np.arange(inner[-1] + factor, n, factor)
+        index = np.concatenate([head, inner, tail])
+        probes = np.concatenate([recording.probes_m[head], filtered[inner - half], recording.probes_m[tail]])
+    else:
+        index, probes = inner, filtered[inner - half]
+    # the impact force held over each new period at its mean there (its impulse kept; zeros past the record's end)
+    force = np.concatenate([recording.impact_force_n, np.zeros((factor, recording.impact_force_n.shape[1]))])
+    held = np.mean(np.stack([force[index + j] for j in range(factor)]), axis=0)
+    meta = {**recording.meta, "decimation": {
+        "factor": factor, "filter_taps": int(taps.size), "edge_samples": half,
+        "edges": "kept unfiltered" if edges == "keep" else "dropped", "edges_why": edges_why,
+        "dropped_edge_samples": 0 if edges == "keep" else half}}
+    return RigRecording(recording.stamps_ns[index], np.ascontiguousarray(probes), recording.pulse_stamps_ns, held,
                         meta=meta)

@@ -10,8 +10,8 @@ from rotor_estimator.core.errors import InputError
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.diagnosis.decimation import (AUTO_MAX_EDGE_TRANSIENT_RATIO, AUTO_MAX_FACTOR,
                                                   HALF_TAPS_PER_FACTOR, automatic_factor, decimated,
-                                                  edge_transient_ratio, half_band_taps, largest_factor,
-                                                  resolved_factor)
+                                                  edge_handling, edge_transient_ratio, half_band_taps,
+                                                  largest_factor, resolved_factor)
 
 FS_HZ = 20000.0
 
@@ -68,8 +68,10 @@ def test_the_impact_impulse_the_stamps_and_the_keyphasor_are_kept():
     assert np.array_equal(out.stamps_ns, rec.stamps_ns[half:n - half][::q][:len(out)])
     assert len(out) == (n - 2 * half) // q
     assert np.array_equal(out.pulse_stamps_ns, rec.pulse_stamps_ns)
-    assert out.meta["decimation"] == {"factor": 2, "filter_taps": half_band_taps(2).size,
-                                      "dropped_edge_samples": half}
+    dec = out.meta["decimation"]
+    assert {k: dec[k] for k in ("factor", "filter_taps", "edge_samples", "edges", "dropped_edge_samples")} == \
+        {"factor": 2, "filter_taps": half_band_taps(2).size, "edge_samples": half, "edges": "dropped",
+         "dropped_edge_samples": half}
     assert decimated(rec, 1) is rec
 
 
@@ -127,11 +129,12 @@ def test_a_decimated_record_carries_the_same_information_on_the_parameters():
     assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
 
 
-def test_auto_picks_at_most_two_where_the_speed_the_length_and_the_impact_allow():
+def test_auto_picks_at_most_two_where_the_speed_and_the_length_allow():
     """``decimate="auto"``: a 0.5 s record at 20 kHz of a 200 Hz rotor gets 2 (4 would pass the band, the cap is
     the factor checked on the blind sets); a 500 Hz rotor (5 kHz above 0.45 x 10 kHz) keeps the full rate; a 0.15 s
-    record too (its filter edges would be 13 % of it); so does one with an impact inside the dropped edges, and one
-    without keyphasor pulses (its band cannot be checked). Each says why."""
+    record too (its filter edges would be 13 % of it), and one without keyphasor pulses (its band cannot be
+    checked). An impact inside the filter's edges no longer keeps the full rate: the edges are kept unfiltered
+    (:func:`edge_handling`). Each says why."""
     n = 10000
     assert AUTO_MAX_FACTOR == 2 and largest_factor(FS_HZ, 200.0) == 4
     q, why = automatic_factor(_record(np.zeros((n, 4)), speed_hz=200.0))
@@ -139,19 +142,46 @@ def test_auto_picks_at_most_two_where_the_speed_the_length_and_the_impact_allow(
     q, why = automatic_factor(_record(np.zeros((n, 4)), speed_hz=500.0))
     assert q == 1 and "needs the full rate" in why
     q, why = automatic_factor(_record(np.zeros((3000, 4))))
-    assert q == 1 and "drop 400 of the 3000 samples" in why
+    assert q == 1 and "filter only 2600 of the 3000 samples (the filter's edges" in why
     for at in (150, n - 150):
         force = np.zeros((n, 2))
         force[at] = [100.0, 0.0]
-        q, why = automatic_factor(_record(np.zeros((n, 4)), force))
-        assert q == 1 and "impact" in why
-    force = np.zeros((n, 2))
-    force[250] = [100.0, 0.0]  # just inside the kept span
-    assert automatic_factor(_record(np.zeros((n, 4)), force))[0] == 2
+        rec = _record(np.zeros((n, 4)), force)
+        assert automatic_factor(rec)[0] == 2
+        assert edge_handling(rec, 2) == ("keep", "an impact in them")
     no_pulses = _record(np.zeros((n, 4)))
     no_pulses = RigRecording(no_pulses.stamps_ns, no_pulses.probes_m, no_pulses.pulse_stamps_ns[:1],
                              no_pulses.impact_force_n)
     assert automatic_factor(no_pulses) == (1, "no keyphasor pulses to check the band against")
+
+
+def test_kept_edges_are_the_raw_samples_on_the_same_grid_and_keep_the_impact_and_the_transient():
+    """A record rising from rest (20 ms time constant) with an impact 5 ms in: decimated by 2 it keeps its first
+    and last samples' span (the edges kept unfiltered: the raw samples at every 2nd stamp, so the in-band signal
+    there is exact), the grid is uniform across the edge-to-filtered seams, the impact's impulse is whole, and the
+    filtered interior equals the edges-dropped decimation of the same record."""
+    n, q = 10000, 2
+    half = HALF_TAPS_PER_FACTOR * q
+    probes = _rotor_response(n, 200.0, 1e-6, 4, rise_s=0.02)
+    force = np.zeros((n, 2))
+    force[100:103] = [[50.0, 10.0], [200.0, 40.0], [50.0, 10.0]]
+    rec = _record(probes, force)
+    out = decimated(rec, q)
+    dec = out.meta["decimation"]
+    assert dec["edges"] == "kept unfiltered" and "impact" in dec["edges_why"] and dec["dropped_edge_samples"] == 0
+    assert out.stamps_ns[0] == rec.stamps_ns[0] and rec.stamps_ns[-1] - out.stamps_ns[-1] < q * 50_000
+    assert np.all(np.diff(out.stamps_ns) == q * 50_000)
+    at = rec.stamps_ns.searchsorted(out.stamps_ns)  # each kept sample's index in the record
+    head, tail = at < half, at >= n - half
+    assert np.array_equal(out.probes_m[head], probes[at[head]]) and head.sum() == half // q
+    assert np.array_equal(out.probes_m[tail], probes[at[tail]]) and tail.sum() >= half // q - 1
+    taps = half_band_taps(q)
+    inner = ~head & ~tail
+    expected = np.stack([np.convolve(probes[:, i], taps, mode="valid") for i in range(4)], axis=1)[at[inner] - half]
+    assert np.array_equal(out.probes_m[inner], expected)
+    assert np.allclose(out.impact_force_n.sum(axis=0) * q, force.sum(axis=0), rtol=1e-12)
+    how, why = edge_handling(RigRecording(rec.stamps_ns, probes, rec.pulse_stamps_ns, np.zeros((n, 2))), q)
+    assert how == "keep" and "transient" in why  # without the impact, the rise from rest alone keeps them
 
 
 def test_resolved_factor_takes_auto_or_a_factor_and_names_decimate_otherwise():
@@ -176,25 +206,27 @@ def _rotor_response(n: int, speed_hz: float, noise_std_m: float, seed: int, rise
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_steady_record_reads_noise_at_its_edges_and_one_from_rest_a_transient(seed):
     """``edge_transient_ratio``: a steady 1X + 2X record with 1 um noise is periodic at its edges (ratio within
-    0.8-1.2: the difference is noise alone) and is decimated by auto; the same orbit rising from rest with a
-    20 ms time constant is not periodic in its first 10 ms (ratio 2.4 here) and keeps the full rate, saying why."""
+    0.8-1.2: the difference is noise alone), and its edges are dropped; the same orbit rising from rest with a
+    20 ms time constant is not periodic in its first 10 ms (ratio 2.4 here): its edges are kept unfiltered, saying
+    why. Both are decimated by auto."""
     n = 10000
     steady = _record(_rotor_response(n, 200.0, 1e-6, seed))
     assert 0.8 < edge_transient_ratio(steady, 200) < 1.2
-    assert automatic_factor(steady)[0] == 2
+    assert automatic_factor(steady)[0] == 2 and edge_handling(steady, 2)[0] == "drop"
     from_rest = _record(_rotor_response(n, 200.0, 1e-6, seed, rise_s=0.02))
     assert edge_transient_ratio(from_rest, 200) > 2 > AUTO_MAX_EDGE_TRANSIENT_RATIO
-    q, why = automatic_factor(from_rest)
-    assert q == 1 and "transient" in why
+    assert automatic_factor(from_rest)[0] == 2
+    how, why = edge_handling(from_rest, 2)
+    assert how == "keep" and "transient" in why
 
 
-def test_a_dropout_away_from_the_edges_does_not_stop_auto_and_one_in_an_edge_does():
-    """Non-finite probe samples in the middle of a steady record leave the edge check as it was (auto picks 2);
-    in the first 10 ms they make it uncheckable, and auto keeps the full rate saying so."""
+def test_a_dropout_away_from_the_edges_leaves_them_dropped_and_one_in_an_edge_keeps_them():
+    """Non-finite probe samples in the middle of a steady record leave the edge check as it was (dropped); in
+    the first 10 ms they make it uncheckable, and the edges are kept unfiltered, saying so."""
     probes = _rotor_response(10000, 200.0, 1e-6, 3)
     probes[5000:5010, 1] = np.nan
     assert 0.8 < edge_transient_ratio(_record(probes), 200) < 1.2
-    assert automatic_factor(_record(probes))[0] == 2
+    assert edge_handling(_record(probes), 2)[0] == "drop"
     probes[50, 2] = np.nan
-    q, why = automatic_factor(_record(probes))
-    assert q == 1 and "cannot be checked" in why
+    how, why = edge_handling(_record(probes), 2)
+    assert how == "keep" and "cannot be checked" in why
