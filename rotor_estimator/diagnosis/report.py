@@ -189,7 +189,8 @@ def markdown(d: Diagnosis, summary: dict) -> str:
     if dec and dec["factor"] > 1:
         lines.append(f"Decimated by {dec['factor']} to {dec['sample_rate_hz']:.0f} Hz before the fits "
                      f"({dec['why']}; the {dec['edge_samples']} samples at each end, where the filter runs off "
-                     f"the record, {dec['edges']}: {dec['edges_why']}; `--decimate 1` keeps the full rate). The residual RMS, noise and gap ratio above are at the "
+                     f"the record, {dec['edges']}: {dec['edges_why']}; `--decimate 1` keeps the full rate). "
+                     "The residual RMS, noise and gap ratio above are at the "
                      f"record's rate (noise {_fmt_um(dec['noise_std_m_at_record_rate'])} um); the tables below "
                      f"are at the fits' rate (noise {_fmt_um(dec['noise_std_m_at_fit_rate'])} um).")
     elif dec:
