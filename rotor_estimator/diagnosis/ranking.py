@@ -1236,6 +1236,54 @@ def best_other_form_start(singles: list[EffectFit], fit: EffectFit) -> tuple[tup
     return ((np.asarray(best.coefficients, float), np.asarray(best.nl, float)),)
 
 
+def _members(pair: EffectFit, by_name: dict[str, Effect]) -> frozenset:
+    """A pair's two members as ``(name, form)``, the base's in the form it was fitted on."""
+    base_form = pair.base_effects[0] if pair.base_effects and pair.base_effects[0] is not None \
+        else by_name[pair.base[0]]
+    return frozenset(((pair.base[0], base_form), (pair.name, _form(pair, by_name))))
+
+
+def substituted_pairs(pairs: list[EffectFit], every_form: list[EffectFit], singles: list[EffectFit],
+                      by_name: dict[str, Effect],
+                      threshold: float) -> list[tuple[EffectFit, Effect, tuple[EffectFit, ...]]]:
+    """Pairs to fit with a nested effect in a member's place, as ``(leading pair, nested effect, bases)``.
+
+    For each of the :data:`PAIR_REFINE` leading ``pairs`` and each effect whose single in ``singles`` shows
+    (delta BIC >= ``threshold``) and which :attr:`.Effect.nests_in` one of the pair's members: the nested effect
+    (in the form that stands for it) on the other member's single, in each form of it in ``every_form`` with as
+    many parameters as the form the pair holds (that form first). None where no such single is left, a form
+    whose pair with the nested effect is in ``pairs`` already being left out.
+
+    Why: the nested effect's own single cannot take up a second effect that the richer one absorbs (a keyphasor
+    offset beside a probe turned by 17 deg, an independent record from rest: the offset's single 34 behind the
+    unbalance's in -2 ln L), and its pair's first pass on the other member's single starts from coefficients
+    that single dragged. Every form of the other member: the form was chosen beside the richer effect, which
+    absorbed part of what it reads (that record's leading pair held the unbalance with another probe than the
+    turned one). From the turned probe's single a joint refit reached the offset at 123.8 deg (true 124.3) and a
+    pair 42 in BIC over the top single, where the unbalance's pair was 17 over it.
+    """
+    fitted = {_members(p, by_name) for p in pairs}
+    plan: list[tuple[EffectFit, Effect, tuple[EffectFit, ...]]] = []
+    nested = [by_name[f.name] for f in singles if f.delta_bic >= threshold and by_name[f.name].nests_in]
+    for p in pairs[:PAIR_REFINE]:
+        members = _members(p, by_name)
+        for e in nested:
+            richer = next((m for m in members if m[0] == e.nests_in), None)
+            if richer is None or any(m[0] == e.name for m in members):
+                continue
+            ((other_name, other_form),) = members - {richer}
+            held = next((f for f in every_form if f.name == other_name and _form(f, by_name) == other_form), None)
+            if held is None:
+                continue
+            bases = [held] + [f for f in every_form if f.name == other_name and f.n_params == held.n_params
+                              and _form(f, by_name) != other_form]
+            bases = [b for b in bases if frozenset(((e.name, e), (other_name, _form(b, by_name)))) not in fitted]
+            fitted |= {frozenset(((e.name, e), (other_name, _form(b, by_name)))) for b in bases}
+            if bases:
+                plan.append((p, e, tuple(bases)))
+    return plan
+
+
 def forms_to_converge(singles: list[EffectFit], leaders: int = 2) -> set[str]:
     """Names of the ``leaders`` best effects (each by its best form's BIC) that were fitted in more than one
     form: every form of these is continued to convergence before one stands for its effect."""
@@ -1296,7 +1344,9 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
        a pair needing ``threshold`` over the single and a held-out prediction no worse. This
        stops an omnibus effect (runout: 32 columns) from standing in for two real ones. In a
        gap case every form of the two leading effects, the two leading singles and the leading pairs are
-       continued to convergence (``FINAL_NFEV``) before they are compared.
+       continued to convergence (``FINAL_NFEV``) before they are compared. A significant effect that
+       nests in a leading pair's member (:attr:`.Effect.nests_in`) is fitted in its place too
+       (:func:`substituted_pairs`).
     """
     say = progress or (lambda text: None)
     sol0, bic0, ho0 = nominal_solution(ctx)
@@ -1341,6 +1391,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                                 why="form of a leader converged")
     # each effect's best form (by BIC after its joint refit) stands for it from here on
     singles.sort(key=lambda f: f.bic)
+    every_form = list(singles)
     kept: dict[str, EffectFit] = {}
     for f in singles:
         kept.setdefault(f.name, f)
@@ -1404,6 +1455,24 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             a = _base_single(pool, p)
             pairs[i] = refine(a.ctx or ctx, _form(p, by_name), p, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV,
                               polish_nfev=0, why="leading pair converged")
+        pairs.sort(key=lambda f: f.bic)
+        # a nested effect in a leading pair's member's place: its first pass on each form of the other member,
+        # linearized about the pair's coefficients (the other member's single's own were dragged by what the
+        # nested effect explains); the best of them refitted jointly from there and from the prior r0 at its
+        # structural starts, and continued to convergence like the pair it stands in for
+        for lead, e, bases in substituted_pairs(pairs, every_form, singles, by_name, threshold):
+            lctx = lead.ctx or ctx
+            centred = [replace(_refit_base(lctx, a), ctx=lctx, coefficients=lead.coefficients) for a in bases]
+            firsts = [(f, a) for a in centred for f in _pair_first_pass(ctx, e, a, top.bic)]
+            if not firsts:
+                continue
+            first, a = min(firsts, key=lambda fa: fa[0].bic)
+            starts = tuple(e.refine_starts(lctx))
+            fit = refine(lctx, e, first, (a,), reference_bic=top.bic, extra_starts=(lctx.prior_coefficients,),
+                         nl_starts=starts, max_nfev=REFINE_NFEV, why=f"nested in {e.nests_in} of a leading pair")
+            pairs.append(refine(lctx, e, fit, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV, polish_nfev=0,
+                                why="nested pair converged"))
+            pool.append(a)  # the verdict finds a pair's base single in the pool
         pairs.sort(key=lambda f: f.bic)
         # the selected pair: the smallest BIC among those that beat the top single by the threshold, predict
         # the held-out span no worse and whose members do not cancel each other

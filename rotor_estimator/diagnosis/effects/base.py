@@ -78,6 +78,12 @@ class Effect:
     #: transient is estimated, its columns carry the free response of its own model from every initial state,
     #: the rotor's included, in place of the rigid nominal's (:func:`.context.start_in_effect`).
     owns_start_transient: ClassVar[bool] = False
+    #: The effect whose signal family holds this one's with fewer parameters (a keyphasor offset turns the known
+    #: imbalance's force: a residual unbalance in its planes, so the offset's single is dragged wherever a second
+    #: effect is present and the unbalance's is not). In each leading pair that holds that effect, this one is
+    #: refitted in its place from the pair's coefficients (:func:`.ranking.substituted_pairs`); the fewer
+    #: parameters then win the pair's place when they fit as well. None: nests in nothing.
+    nests_in: ClassVar[str | None] = None
 
     def variants(self) -> tuple["Effect", ...]:
         """The physical forms of this effect the search fits apart, keeping the best (default: itself only)."""

@@ -22,6 +22,7 @@ class TachometerOffset(Effect):
     name: ClassVar[str] = "tach_offset"
     kind: ClassVar[str] = "force"
     refit_always: ClassVar[bool] = True
+    nests_in: ClassVar[str | None] = "residual_unbalance"
     responses: ClassVar[dict[str, str]] = {
         "slow_roll": "vanishes (it rotates the known imbalance response)",
         "speed_change": "same angle at every speed",
