@@ -282,3 +282,30 @@ def test_a_late_probe_plane_is_the_one_plane_delay_with_its_delay_within_its_std
     delay_s = truth["delay_samples"] / case.rig_file.rig.sample_rate_hz
     assert abs(best.physical[name] - delay_s) < 3 * best.physical_std[name], (best.physical[name],
                                                                               best.physical_std[name], delay_s)
+
+
+@pytest.mark.slow
+@pytest.mark.extended
+def test_a_keyphasor_offset_beside_a_probe_error_is_that_pair_not_a_residual_unbalance():
+    """A keyphasor offset with a probe error (the independent generator's pair of the two, any of its forms and
+    starts, each effect's own gap at least 1.2x): the ranking's verdict is that pair (verdict and runner-up),
+    not a residual unbalance, which takes up both with its four parameters; and the offset is within 3 reported
+    std of the truth. The offset nests in the unbalance (:attr:`.Effect.nests_in`): without the substitution
+    the pair was missed on four fresh seeds in a row (7431-7434). Case: the first drawn from seed 9100 whose
+    true gap is at least 1.5x, chosen on the generator's draw without any fit; about 6 min."""
+    for seed in range(9100, 9140):
+        case = independent.make_case("t", {"kind": "pair", "families": ("tach_offset", "probe_gain_orientation")},
+                                     seed)
+        if case.label["true_gap"] >= 1.5:
+            break
+    else:
+        raise AssertionError("no such case in 40 seeds")
+    ctx = build_context(case.recording, case.rig_file.rig, case.rig_file.estimator)
+    rk = rank_effects(ctx)
+    verdict = {f.name for f in (rk.best, rk.second) if f is not None}
+    assert verdict == {"tach_offset", "probe_gain_orientation"}, (verdict, case.label["form"],
+                                                                   [(f.name, f.delta_bic) for f in rk.pairs[:4]])
+    offset = next(f for f in (rk.best, rk.second) if f.name == "tach_offset")
+    truth_deg = np.degrees(case.label["effect_params"]["tach_offset"]["offset_rad"])
+    wrapped = (offset.physical["offset_deg"] - truth_deg + 180.0) % 360.0 - 180.0
+    assert abs(wrapped) < 3 * offset.physical_std["offset_deg"], (offset.physical, offset.physical_std, truth_deg)
