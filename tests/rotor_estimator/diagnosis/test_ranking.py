@@ -750,9 +750,9 @@ def test_the_pairs_planned_are_each_pair_of_names_once_then_transforms_and_partn
 def test_a_significant_nested_effect_takes_a_richer_members_place_in_each_leading_pair_once():
     """substituted_pairs: a keyphasor offset (it nests in a residual unbalance) is planned on the other member's
     single in the form the leading pair holds it in and in each other form of as many parameters (the form held
-    first), for each of the PAIR_REFINE leading pairs holding an unbalance; not on a form whose pair with the
-    offset was fitted already, not for a pair past the leading ones or without the unbalance, and not at all
-    when the offset's own single does not show."""
+    first), for each of the PAIR_REFINE leading pairs holding an unbalance, each pair of forms once, and also
+    where that pair of forms was first-passed already (on a dragged single); not for a pair past the leading
+    ones or without the unbalance, and not at all when the offset's own single does not show."""
     from rotor_estimator.diagnosis.effects import LIBRARY
     from rotor_estimator.diagnosis.ranking import PAIR_REFINE, substituted_pairs
 
@@ -775,22 +775,19 @@ def test_a_significant_nested_effect_takes_a_richer_members_place_in_each_leadin
         single("probe_gain_orientation", yp1, n_params=2)
     every_form = singles + [yp1_single, xp1_single]
     pairs = [pair("probe_gain_orientation", "residual_unbalance", yp1),  # 0: yp1 held; xp1 as many parameters
-             pair("residual_unbalance", "probe_runout"),                  # 1: on runout, fitted already (3)
+             pair("residual_unbalance", "probe_runout"),                  # 1: on runout (first-passed as 3)
              pair("pedestal", "misalignment"),                            # 2: no unbalance in it
              pair("tach_offset", "probe_runout"),
              pair("residual_unbalance", "misalignment")]                  # 4: past the leading three
     assert PAIR_REFINE == 3
     plan = substituted_pairs(pairs, every_form, singles, by_name, 30.0)
-    assert plan == [(pairs[0], by_name["tach_offset"], (yp1_single, xp1_single))]  # not the 8-parameter map
-    # the pair fitted already goes: now the offset takes the unbalance's place on runout too
-    plan = substituted_pairs(pairs[:3] + pairs[4:], every_form, singles, by_name, 30.0)
-    assert [(lead.name, e.name, [a.effect for a in bases]) for lead, e, bases in plan] == [
-        ("probe_gain_orientation", "tach_offset", [yp1, xp1]),
-        ("residual_unbalance", "tach_offset", [by_name["probe_runout"]])]
-    # a form whose pair with the offset is fitted already is left out, the others stay
-    done = pairs + [pair("tach_offset", "probe_gain_orientation", base_form=yp1)]
-    assert substituted_pairs(done, every_form, singles, by_name, 30.0) == [
-        (pairs[0], by_name["tach_offset"], (xp1_single,))]
+    assert [(lead, e.name, bases) for lead, e, bases in plan] == [
+        (pairs[0], "tach_offset", (yp1_single, xp1_single)),  # not the 8-parameter map
+        (pairs[1], "tach_offset", (singles[2],))]              # though pair 3 first-passed it on runout's single
+    # a pair of forms planned for an earlier leading pair is not planned again
+    again = [pairs[0], pair("residual_unbalance", "probe_gain_orientation", base_form=xp1), pairs[1]]
+    assert [(lead, bases) for lead, _, bases in substituted_pairs(again, every_form, singles, by_name, 30.0)] == [
+        (again[0], (yp1_single, xp1_single)), (again[2], (singles[2],))]
     # an offset whose single does not show is not planned anywhere
     quiet = [f if f.name != "tach_offset" else single("tach_offset", delta_bic=29.0) for f in singles]
     assert substituted_pairs(pairs, every_form, quiet, by_name, 30.0) == []
