@@ -286,7 +286,7 @@ def test_a_late_probe_plane_is_the_one_plane_delay_with_its_delay_within_its_std
 
 @pytest.mark.slow
 @pytest.mark.extended
-@pytest.mark.xfail(strict=True, reason="measured at c003ab2 (12 min): the verdict is the full probe map alone; "
+@pytest.mark.xfail(strict=True, reason="measured at 3bb0a7f (12 min): the verdict is the full probe map alone; "
                    "the pair with the offset gains -7.7 in BIC. A map turning both planes is nearly the same signal "
                    "as a 13 deg offset at one speed without an impact: the honest answer is a set, not yet returned")
 def test_a_keyphasor_offset_beside_a_probe_error_is_that_pair_not_a_residual_unbalance():
