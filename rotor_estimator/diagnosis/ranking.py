@@ -1250,11 +1250,15 @@ def substituted_pairs(pairs: list[EffectFit], every_form: list[EffectFit], singl
 
     For each of the :data:`PAIR_REFINE` leading ``pairs`` and each effect whose single in ``singles`` shows
     (delta BIC >= ``threshold``) and which :attr:`.Effect.nests_in` one of the pair's members: the nested effect
-    (in the form that stands for it) on the other member's single, in each form of it in ``every_form`` with as
-    many parameters as the form the pair holds (that form first); each pair of forms once. A pair of these forms
-    already in ``pairs`` does not stop it: that one was fitted on the other member's single, about the
-    coefficients it dragged (seed 7435, a keyphasor offset with one probe's gain 25 % high: the offset on the
-    full probe map was planned so, and never refitted; the verdict was the map with an unbalance).
+    (in the form that stands for it) on the other member's single, in each form of it in ``every_form`` with at most
+    as many parameters as the form the pair holds (that form first, then the others from the richest to the
+    leanest); each pair of forms once. The leaner forms: a full probe map (8 entries) in the leading pair takes
+    up part of a keyphasor offset beside it (all four probes turned alike), where one probe's own entries cannot
+    (the offset landed 3.5 std off beside the full map on seed 7435's record of an offset and one probe's gain;
+    beside that probe's own entries, 1.6 std off). A pair of these forms already in ``pairs`` does not stop it:
+    that one was fitted on the other member's single, about the coefficients it dragged (seed 7435, a keyphasor
+    offset with one probe's gain 25 % high: the offset on the full probe map was planned so, and never refitted;
+    the verdict was the map with an unbalance).
 
     Why: the nested effect's own single cannot take up a second effect that the richer one absorbs (a keyphasor
     offset beside a probe turned by 17 deg, an independent record from rest: the offset's single 34 behind the
@@ -1277,13 +1281,61 @@ def substituted_pairs(pairs: list[EffectFit], every_form: list[EffectFit], singl
             held = next((f for f in every_form if f.name == other_name and _form(f, by_name) == other_form), None)
             if held is None:
                 continue
-            bases = [held] + [f for f in every_form if f.name == other_name and f.n_params == held.n_params
-                              and _form(f, by_name) != other_form]
-            bases = [b for b in bases if frozenset(((e.name, e), (other_name, _form(b, by_name)))) not in fitted]
-            fitted |= {frozenset(((e.name, e), (other_name, _form(b, by_name)))) for b in bases}
+            others = sorted((f for f in every_form if f.name == other_name and f.n_params <= held.n_params
+                             and _form(f, by_name) != other_form), key=lambda f: -f.n_params)
+            keys = {id(b): frozenset(((e.name, e), (other_name, _form(b, by_name)))) for b in [held, *others]}
+            bases = [b for b in [held, *others] if keys[id(b)] not in fitted]
+            fitted |= {keys[id(b)] for b in bases}
             if bases:
                 plan.append((p, e, tuple(bases)))
     return plan
+
+
+def leaner_member_pairs(pairs: list[EffectFit], every_form: list[EffectFit], by_name: dict[str, Effect],
+                        planned: list[tuple[EffectFit, Effect, tuple[EffectFit, ...]]] = ()
+                        ) -> list[tuple[EffectFit, Effect, tuple[EffectFit, ...]]]:
+    """Pairs to fit with a leading pair's member in its leaner forms, as ``(leading pair, partner, bases)``.
+
+    For each of the :data:`PAIR_REFINE` leading ``pairs`` and each member held in a form with more parameters
+    than another form of it in ``every_form``: the other member (in the form the pair holds) on that member's
+    leaner forms (from the richest to the leanest); each pair of forms once, and none already in ``planned``
+    (:func:`substituted_pairs`' plan, the same shape).
+
+    Why: a richer form takes up part of its partner beside it, and the pair's refit then never leaves that
+    basin. An independent record of a keyphasor offset (13 deg) with probe xp1 turned 14 deg, from rest and
+    without an impact (seed 9100): the leading pair held the offset beside the full probe map (8 entries), whose
+    four turns took up the offset (the pair 7.7 in BIC behind the map alone); the offset beside probe xp1's own
+    two entries, with six parameters fewer, was never fitted.
+    """
+    done = {frozenset(((e.name, e), (b.name, _form(b, by_name)))) for _, e, bases in planned for b in bases}
+    plan: list[tuple[EffectFit, Effect, tuple[EffectFit, ...]]] = []
+    for p in pairs[:PAIR_REFINE]:
+        members = _members(p, by_name)
+        for member in sorted(members, key=lambda m: m[0]):
+            (partner,) = members - {member}
+            held = next((f for f in every_form if f.name == member[0] and _form(f, by_name) == member[1]), None)
+            if held is None:
+                continue
+            leaner = sorted((f for f in every_form if f.name == member[0] and f.n_params < held.n_params),
+                            key=lambda f: -f.n_params)
+            keys = {id(b): frozenset((partner, (b.name, _form(b, by_name)))) for b in leaner}
+            bases = [b for b in leaner if keys[id(b)] not in done]
+            done |= {keys[id(b)] for b in bases}
+            if bases:
+                plan.append((p, partner[1], tuple(bases)))
+    return plan
+
+
+def best_of_each_size(firsts: list[tuple["EffectFit", "EffectFit"]]) -> list[tuple["EffectFit", "EffectFit"]]:
+    """Of first passes ``(pair, base)``, the best (smallest BIC) for each base size (its ``n_params``), the
+    largest size first. A first pass linearizes about coefficients that suit the richer form: its extra terms
+    take up part of the nested effect there, so the leaner form's pair is judged after its own joint refit,
+    not by that first pass."""
+    best: dict[int, tuple[EffectFit, EffectFit]] = {}
+    for f, a in firsts:
+        if a.n_params not in best or f.bic < best[a.n_params][0].bic:
+            best[a.n_params] = (f, a)
+    return [best[k] for k in sorted(best, reverse=True)]
 
 
 def forms_to_converge(singles: list[EffectFit], leaders: int = 2) -> set[str]:
@@ -1348,7 +1400,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
        gap case every form of the two leading effects, the two leading singles and the leading pairs are
        continued to convergence (``FINAL_NFEV``) before they are compared. A significant effect that
        nests in a leading pair's member (:attr:`.Effect.nests_in`) is fitted in its place too
-       (:func:`substituted_pairs`).
+       (:func:`substituted_pairs`), and a leading pair's member in its leaner forms (:func:`leaner_member_pairs`).
     """
     say = progress or (lambda text: None)
     sol0, bic0, ho0 = nominal_solution(ctx)
@@ -1458,23 +1510,26 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
             pairs[i] = refine(a.ctx or ctx, _form(p, by_name), p, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV,
                               polish_nfev=0, why="leading pair converged")
         pairs.sort(key=lambda f: f.bic)
-        # a nested effect in a leading pair's member's place: its first pass on each form of the other member,
-        # linearized about the pair's coefficients (the other member's single's own were dragged by what the
-        # nested effect explains); the best of them refitted jointly from there and from the prior r0 at its
-        # structural starts, and continued to convergence like the pair it stands in for
-        for lead, e, bases in substituted_pairs(pairs, every_form, singles, by_name, threshold):
+        # a nested effect in a leading pair's member's place (its first pass on each form of the other member),
+        # and a leading pair's member in its leaner forms (the other member's first pass on each), linearized
+        # about the leading pair's coefficients (a member's single's own were dragged by what the other
+        # explains); the best of each size refitted jointly from there and from the prior r0 at its structural
+        # starts, and continued to convergence like the pair it stands in for
+        nested = substituted_pairs(pairs, every_form, singles, by_name, threshold)
+        plans = [(lead, e, bases, f"nested in {e.nests_in} of a leading pair") for lead, e, bases in nested] + \
+            [(lead, e, bases, "a leaner form in a leading pair")
+             for lead, e, bases in leaner_member_pairs(pairs, every_form, by_name, nested)]
+        for lead, e, bases, why in plans:
             lctx = lead.ctx or ctx
             centred = [replace(_refit_base(lctx, a), ctx=lctx, coefficients=lead.coefficients) for a in bases]
             firsts = [(f, a) for a in centred for f in _pair_first_pass(ctx, e, a, top.bic)]
-            if not firsts:
-                continue
-            first, a = min(firsts, key=lambda fa: fa[0].bic)
             starts = tuple(e.refine_starts(lctx))
-            fit = refine(lctx, e, first, (a,), reference_bic=top.bic, extra_starts=(lctx.prior_coefficients,),
-                         nl_starts=starts, max_nfev=REFINE_NFEV, why=f"nested in {e.nests_in} of a leading pair")
-            pairs.append(refine(lctx, e, fit, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV, polish_nfev=0,
-                                why="nested pair converged"))
-            pool.append(a)  # the verdict finds a pair's base single in the pool
+            for first, a in best_of_each_size(firsts):
+                fit = refine(lctx, e, first, (a,), reference_bic=top.bic, extra_starts=(lctx.prior_coefficients,),
+                             nl_starts=starts, max_nfev=REFINE_NFEV, why=why)
+                pairs.append(refine(lctx, e, fit, (a,), reference_bic=top.bic, max_nfev=FINAL_NFEV, polish_nfev=0,
+                                    why=f"{why}: converged"))
+                pool.append(a)  # the verdict finds a pair's base single in the pool
         pairs.sort(key=lambda f: f.bic)
         # the selected pair: the smallest BIC among those that beat the top single by the threshold, predict
         # the held-out span no worse and whose members do not cancel each other

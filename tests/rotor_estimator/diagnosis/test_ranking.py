@@ -749,10 +749,10 @@ def test_the_pairs_planned_are_each_pair_of_names_once_then_transforms_and_partn
 
 def test_a_significant_nested_effect_takes_a_richer_members_place_in_each_leading_pair_once():
     """substituted_pairs: a keyphasor offset (it nests in a residual unbalance) is planned on the other member's
-    single in the form the leading pair holds it in and in each other form of as many parameters (the form held
-    first), for each of the PAIR_REFINE leading pairs holding an unbalance, each pair of forms once, and also
-    where that pair of forms was first-passed already (on a dragged single); not for a pair past the leading
-    ones or without the unbalance, and not at all when the offset's own single does not show."""
+    single in the form the leading pair holds it in and in each other form of as many parameters or fewer (the
+    form held first; none richer), for each of the PAIR_REFINE leading pairs holding an unbalance, each pair of
+    forms once, and also where that pair of forms was first-passed already (on a dragged single); not for a pair
+    past the leading ones or without the unbalance, and not at all when the offset's own single does not show."""
     from rotor_estimator.diagnosis.effects import LIBRARY
     from rotor_estimator.diagnosis.ranking import PAIR_REFINE, substituted_pairs
 
@@ -791,6 +791,85 @@ def test_a_significant_nested_effect_takes_a_richer_members_place_in_each_leadin
     # an offset whose single does not show is not planned anywhere
     quiet = [f if f.name != "tach_offset" else single("tach_offset", delta_bic=29.0) for f in singles]
     assert substituted_pairs(pairs, every_form, quiet, by_name, 30.0) == []
+
+
+def test_a_nested_effect_beside_a_richer_form_is_also_planned_on_the_leaner_forms_and_each_size_refitted():
+    """substituted_pairs: where the leading pair holds the full probe map (8 entries) beside the unbalance, the
+    offset is planned on the full map first, then on each single-probe form (2 entries, fewer parameters: the
+    full map takes up part of an offset, all four probes turned alike), never on a richer form than the one
+    held; best_of_each_size then keeps the best first pass of each base size, the richest first, so the leaner
+    form's pair gets its own joint refit even when a richer one's first pass is better."""
+    from rotor_estimator.diagnosis.effects import LIBRARY
+    from rotor_estimator.diagnosis.ranking import best_of_each_size, substituted_pairs
+
+    by_name = {e.name: e for e in LIBRARY}
+    full, xp1, yp1 = by_name["probe_gain_orientation"].variants()[:3]
+
+    def single(name, effect=None, delta_bic=100.0, n_params=4):
+        return SimpleNamespace(name=name, effect=effect or by_name[name], delta_bic=delta_bic, n_params=n_params)
+
+    singles = [single("probe_gain_orientation", full, n_params=8), single("residual_unbalance"),
+               single("tach_offset", delta_bic=40.0, n_params=1)]
+    xp1_single = single("probe_gain_orientation", xp1, n_params=2)
+    yp1_single = single("probe_gain_orientation", yp1, n_params=2)
+    every_form = [singles[0], xp1_single, singles[1], yp1_single, singles[2]]
+    lead = SimpleNamespace(name="residual_unbalance", base=("probe_gain_orientation",), base_effects=(full,),
+                           effect=by_name["residual_unbalance"])
+    ((planned_lead, nested, bases),) = substituted_pairs([lead], every_form, singles, by_name, 30.0)
+    assert planned_lead is lead and nested.name == "tach_offset"
+    assert bases == (singles[0], xp1_single, yp1_single)
+    # held on a single-probe form: the full map (richer) is not planned
+    lean_lead = SimpleNamespace(name="residual_unbalance", base=("probe_gain_orientation",), base_effects=(xp1,),
+                                effect=by_name["residual_unbalance"])
+    ((_, _, lean_bases),) = substituted_pairs([lean_lead], every_form, singles, by_name, 30.0)
+    assert lean_bases == (xp1_single, yp1_single)
+
+    def first(bic):
+        return SimpleNamespace(bic=bic)
+
+    firsts = [(first(-100.0), singles[0]), (first(-60.0), xp1_single), (first(-80.0), yp1_single)]
+    assert best_of_each_size(firsts) == [firsts[0], firsts[2]]
+    assert best_of_each_size([]) == []
+
+
+def test_a_leading_pairs_member_in_a_rich_form_is_planned_in_its_leaner_forms_beside_its_partner_once():
+    """leaner_member_pairs: a leading pair holding the full probe map (8 entries) beside a keyphasor offset plans
+    the offset on each single-probe form of the map (2 entries), the richest first; a member held in its leanest
+    form plans nothing; a pair of forms already planned (by substituted_pairs, or for an earlier leading pair) is
+    not planned again; pairs past the PAIR_REFINE leading ones are not looked at."""
+    from rotor_estimator.diagnosis.effects import LIBRARY
+    from rotor_estimator.diagnosis.ranking import PAIR_REFINE, leaner_member_pairs
+
+    by_name = {e.name: e for e in LIBRARY}
+    full, xp1, yp1 = by_name["probe_gain_orientation"].variants()[:3]
+    offset = by_name["tach_offset"]
+
+    def single(name, effect=None, n_params=4):
+        return SimpleNamespace(name=name, effect=effect or by_name[name], n_params=n_params)
+
+    def pair(name, base, base_form=None):
+        return SimpleNamespace(name=name, base=(base,), base_effects=(base_form,) if base_form else (),
+                               effect=by_name[name])
+
+    full_single = single("probe_gain_orientation", full, n_params=8)
+    xp1_single = single("probe_gain_orientation", xp1, n_params=2)
+    yp1_single = single("probe_gain_orientation", yp1, n_params=2)
+    every_form = [full_single, single("tach_offset", n_params=1), xp1_single, single("residual_unbalance"),
+                  yp1_single]
+    pairs = [pair("tach_offset", "probe_gain_orientation", full),           # the map's leaner forms
+             pair("tach_offset", "probe_gain_orientation", xp1),            # leanest already: nothing
+             pair("residual_unbalance", "probe_gain_orientation", full),    # the unbalance on the leaner forms
+             pair("residual_unbalance", "tach_offset")]                     # past the leading three
+    assert PAIR_REFINE == 3
+    plan = leaner_member_pairs(pairs, every_form, by_name)
+    assert [(lead, e, bases) for lead, e, bases in plan] == [
+        (pairs[0], offset, (xp1_single, yp1_single)),
+        (pairs[2], by_name["residual_unbalance"], (xp1_single, yp1_single))]
+    # the same pair of forms for a later leading pair, or already in another plan, is not planned again
+    again = [pairs[0], pair("tach_offset", "probe_gain_orientation", full), pairs[2]]
+    assert [lead for lead, _, _ in leaner_member_pairs(again, every_form, by_name)] == [again[0], again[2]]
+    assert leaner_member_pairs(pairs[:1], every_form, by_name, [(pairs[2], offset, (xp1_single,))]) == [
+        (pairs[0], offset, (yp1_single,))]
 
 
 def _pair_search_fixture():
