@@ -1243,6 +1243,17 @@ def _members(pair: EffectFit, by_name: dict[str, Effect]) -> frozenset:
     return frozenset(((pair.base[0], base_form), (pair.name, _form(pair, by_name))))
 
 
+def _unplanned_beside(partner: tuple[str, Effect], forms: list[EffectFit], by_name: dict[str, Effect],
+                      done: set[frozenset]) -> list[EffectFit]:
+    """Of ``forms`` (in their order), those whose pair with ``partner`` (``(name, form)``) is not in ``done``; every
+    pair of ``forms`` with ``partner`` is added to ``done``. The one record of which pairs of forms a plan holds,
+    shared by :func:`substituted_pairs` and :func:`leaner_member_pairs`."""
+    keys = [frozenset((partner, (b.name, _form(b, by_name)))) for b in forms]
+    fresh = [b for b, key in zip(forms, keys) if key not in done]
+    done.update(keys)
+    return fresh
+
+
 def substituted_pairs(pairs: list[EffectFit], every_form: list[EffectFit], singles: list[EffectFit],
                       by_name: dict[str, Effect],
                       threshold: float) -> list[tuple[EffectFit, Effect, tuple[EffectFit, ...]]]:
@@ -1265,8 +1276,7 @@ def substituted_pairs(pairs: list[EffectFit], every_form: list[EffectFit], singl
     unbalance's in -2 ln L), and its pair's first pass on the other member's single starts from coefficients
     that single dragged. Every form of the other member: the form was chosen beside the richer effect, which
     absorbed part of what it reads (that record's leading pair held the unbalance with another probe than the
-    turned one). From the turned probe's single a joint refit reached the offset at 123.8 deg (true 124.3) and a
-    pair 42 in BIC over the top single, where the unbalance's pair was 17 over it.
+    turned one).
     """
     fitted: set[frozenset] = set()
     plan: list[tuple[EffectFit, Effect, tuple[EffectFit, ...]]] = []
@@ -1283,9 +1293,7 @@ def substituted_pairs(pairs: list[EffectFit], every_form: list[EffectFit], singl
                 continue
             others = sorted((f for f in every_form if f.name == other_name and f.n_params <= held.n_params
                              and _form(f, by_name) != other_form), key=lambda f: -f.n_params)
-            keys = {id(b): frozenset(((e.name, e), (other_name, _form(b, by_name)))) for b in [held, *others]}
-            bases = [b for b in [held, *others] if keys[id(b)] not in fitted]
-            fitted |= {keys[id(b)] for b in bases}
+            bases = _unplanned_beside((e.name, e), [held, *others], by_name, fitted)
             if bases:
                 plan.append((p, e, tuple(bases)))
     return plan
@@ -1307,7 +1315,9 @@ def leaner_member_pairs(pairs: list[EffectFit], every_form: list[EffectFit], by_
     four turns took up the offset (the pair 7.7 in BIC behind the map alone); the offset beside probe xp1's own
     two entries, with six parameters fewer, was never fitted.
     """
-    done = {frozenset(((e.name, e), (b.name, _form(b, by_name)))) for _, e, bases in planned for b in bases}
+    done: set[frozenset] = set()
+    for _, e, bases in planned:
+        _unplanned_beside((e.name, e), list(bases), by_name, done)
     plan: list[tuple[EffectFit, Effect, tuple[EffectFit, ...]]] = []
     for p in pairs[:PAIR_REFINE]:
         members = _members(p, by_name)
@@ -1318,9 +1328,7 @@ def leaner_member_pairs(pairs: list[EffectFit], every_form: list[EffectFit], by_
                 continue
             leaner = sorted((f for f in every_form if f.name == member[0] and f.n_params < held.n_params),
                             key=lambda f: -f.n_params)
-            keys = {id(b): frozenset((partner, (b.name, _form(b, by_name)))) for b in leaner}
-            bases = [b for b in leaner if keys[id(b)] not in done]
-            done |= {keys[id(b)] for b in bases}
+            bases = _unplanned_beside(partner, leaner, by_name, done)
             if bases:
                 plan.append((p, partner[1], tuple(bases)))
     return plan
