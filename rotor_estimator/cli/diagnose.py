@@ -78,9 +78,10 @@ def add_parser(subparsers) -> None:
     p.add_argument("--passes", type=cli_types.passes, default=2, help="EKF passes of the nominal fit (default 2)")
     p.add_argument("--decimate", type=cli_types.decimation, default="auto", metavar="Q|auto",
                    help="low-pass filter the record and keep every Q-th sample before the fits (fewer samples, the "
-                        "same band up to 0.45 of the new rate; a factor putting 10x the running speed above it is "
-                        "refused); default auto: 2 where the speed allows it and the filter's edges are at most 10 %% "
-                        "of the record and hold no impact and no transient, else 1; 1 keeps the record's rate")
+                        "same band up to 0.45 of the new rate; a factor putting 5x the running speed above it is "
+                        "refused; the noise floor is read at the record's rate when 10x the speed is above 0.3 of the "
+                        "new one); default auto: the largest up to 4 the speed allows while the filter's edges are at "
+                        "most 10 %% of the record, else 1; 1 keeps the record's rate")
     p.set_defaults(func=cmd_diagnose)
 
 

@@ -381,10 +381,12 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     A record longer than ``max_fit_window_s`` is diagnosed on one window of it (see
     :func:`analysis_window`); ``summary()['data']['analysis_window']`` says which. ``decimate``: that window is
     low-pass filtered and decimated by this factor first (:func:`.decimation.decimated`; fewer samples, the same
-    band and information on the parameters); ``"auto"`` picks it (:func:`.decimation.automatic_factor`: 2 where
-    the speed and the record allow, else 1), ``1`` keeps the record's rate; ``summary()['data']['decimation']``
-    says which and why. ``progress``, when given, is called with one line of text at each stage."""
-    from rotor_estimator.diagnosis.decimation import decimated, resolved_factor
+    band and information on the parameters); ``"auto"`` picks it (:func:`.decimation.automatic_factor`: up to 4
+    where the speed and the record allow, else 1), ``1`` keeps the record's rate; ``summary()['data']['decimation']``
+    says which and why; the fits' noise floor is read at the record's rate when the decimated one's band cannot
+    show it (:func:`.decimation.fit_rate_noise_std_m`). ``progress``, when given, is called with one line of text
+    at each stage."""
+    from rotor_estimator.diagnosis.decimation import decimated, fit_rate_noise_std_m, resolved_factor
 
     full_n = len(recording)
     start, stop, why = analysis_window(recording, max_fit_window_s)
@@ -402,7 +404,8 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     if factor > 1:
         say(f"decimated by {factor} ({factor_why}): {len(recording)} of {undecimated_n} samples")
     say(f"nominal fit: EKF ({passes} passes), then output-error refinement of the 8 coefficients")
-    ctx = build_context(recording, rig, config, passes=passes)
+    carried_noise = fit_rate_noise_std_m(record_rate, factor)  # None: read at the fits' rate
+    ctx = build_context(recording, rig, config, passes=passes, noise_std_m=carried_noise)
     sol0, _, ho0 = nominal_solution(ctx)
     rk = rank_effects(ctx, library, progress=say)
     if rk.nominal_coefficients is not None:
@@ -447,7 +450,9 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     data["warnings"] += stability_warnings
     data["decimation"] = {**(recording.meta["decimation"] if factor > 1 else {"factor": 1}), "requested": decimate,
                           "why": factor_why, "samples_before": undecimated_n,
-                          "sample_rate_hz": float(1.0 / np.median(np.diff(recording.time_s())))}
+                          "sample_rate_hz": float(1.0 / np.median(np.diff(recording.time_s()))),
+                          "noise_floor_read_at": "the fits' rate" if carried_noise is None else
+                          "the record's rate, times the filter's white-noise gain"}
     if window is not None:
         data["analysis_window"] = window
         data["samples_in_record"] = full_n

@@ -12,7 +12,11 @@ without the filter would fold the whole band's noise in and lose a factor ``q`` 
 The filter is a zero-phase (symmetric, centred) Kaiser-windowed half-band FIR at the new Nyquist frequency,
 ``2 * HALF_TAPS_PER_FACTOR * q + 1`` taps: flat to 1e-5 up to 0.45 of the new sampling rate, below 1.3e-5 from
 0.55 of it (what folds onto 0.45 and below), and -6 dB at the new Nyquist. So the white noise stays white up to
-0.45 of the new rate, where the diagnosis estimates the noise floor (:func:`.context.noise_std_from_spectrum`).
+0.45 of the new rate. A factor keeps ``RESPONSE_ORDER`` x the running speed in that flat band (the fits model
+the harmonics up to 4X). The diagnosis reads the noise floor above 10x the speed
+(:func:`.context.noise_std_from_spectrum`): at the new rate while 10x the speed is at most 0.3 of it (the band
+read there before decimation went beyond 2), else at the record's own rate, carried to the new one by the
+filter's white-noise gain ``sqrt(sum h^2)`` (:func:`fit_rate_noise_std_m`).
 The first and last ``HALF_TAPS_PER_FACTOR * q`` samples, where the filter would run off the record, are dropped
 when they are steady and hold no impact (the rest of the record repeats them); otherwise (a start from rest, an
 impact there) they are kept unfiltered on the same grid, every ``q``-th raw sample: their in-band signal is exact
@@ -35,13 +39,21 @@ KAISER_BETA = 8.0
 #: The highest frequency the diagnosis needs is below this fraction of the new sampling rate: the filter's
 #: flat band (see the module docstring).
 FLAT_FRACTION = 0.45
-#: The diagnosis reads the noise floor above 10x the running speed (:func:`.context.build_context`): a factor is
-#: allowed while that frequency stays in the flat band of the new rate.
+#: The diagnosis reads the noise floor above 10x the running speed (:func:`.context.build_context`).
 NOISE_BAND_ORDER = 10.0
+#: A factor is allowed while this multiple of the running speed stays in the flat band of the new rate: the fits
+#: model the rotor's harmonics up to 4X (:func:`.linsim.harmonic_phasors`), one order of margin. The noise floor
+#: is then read at the record's rate where the new rate's band above 10x the speed is too narrow
+#: (:func:`fit_rate_noise_std_m`). 10 (the noise band itself) until the noise was carried.
+RESPONSE_ORDER = 5.0
+#: Where the decimated record's own band is read for the noise floor: from 10x the speed, while that is at most
+#: this share of the new rate (the band 0.3-0.45 of it checked on white noise, README "Decimation").
+FIT_RATE_NOISE_LOW_FRACTION = 0.3
 #: Samples a decimated record keeps at least (beyond the dropped edges).
 MIN_KEPT_SAMPLES = 256
-#: The largest factor ``decimate="auto"`` picks: the one checked on the blind sets (README, "Decimation").
-AUTO_MAX_FACTOR = 2
+#: The largest factor ``decimate="auto"`` picks: the one checked on the blind sets (README, "Decimation"; 2 until
+#: the noise floor could be read at the record's rate).
+AUTO_MAX_FACTOR = 4
 #: ``decimate="auto"`` keeps the full rate when the filter's dropped edges would be more than this share of the
 #: record (a short record loses more by its edges than it gains in time; own seed 2041's 0.25-0.28 s records,
 #: 7-8 % dropped at a factor of 2, kept every benchmark figure).
@@ -61,17 +73,48 @@ def half_band_taps(factor: int) -> np.ndarray:
 
 
 def largest_factor(sample_rate_hz: float, max_speed_hz: float, limit: int = 8) -> int:
-    """The largest factor (at most ``limit``) whose new rate keeps ``NOISE_BAND_ORDER`` x ``max_speed_hz`` in the
-    flat band (``FLAT_FRACTION`` of the new rate): the rotor's harmonics and the noise band the diagnosis reads."""
-    q = int(np.floor(FLAT_FRACTION * sample_rate_hz / (NOISE_BAND_ORDER * max(max_speed_hz, 1e-9))))
+    """The largest factor (at most ``limit``) whose new rate keeps ``RESPONSE_ORDER`` x ``max_speed_hz`` in the
+    flat band (``FLAT_FRACTION`` of the new rate): the rotor's harmonics the fits model."""
+    q = int(np.floor(FLAT_FRACTION * sample_rate_hz / (RESPONSE_ORDER * max(max_speed_hz, 1e-9))))
     return max(1, min(q, int(limit)))
+
+
+def noise_read_at_record_rate(sample_rate_hz: float, factor: int, max_speed_hz: float) -> bool:
+    """Whether the noise floor of a record decimated by ``factor`` is read at the record's own rate: where
+    ``NOISE_BAND_ORDER`` x the speed is above ``FIT_RATE_NOISE_LOW_FRACTION`` of the new rate, the new rate's
+    band from there to its flat band's edge is narrower than the one checked, or empty."""
+    return factor > 1 and NOISE_BAND_ORDER * max_speed_hz > FIT_RATE_NOISE_LOW_FRACTION * sample_rate_hz / factor
+
+
+def filter_noise_gain(factor: int) -> float:
+    """``sqrt(sum h^2)`` of :func:`half_band_taps`: the std of white noise after the filter over its std before
+    (about ``1 / sqrt(factor)``: the kept band's share)."""
+    taps = half_band_taps(int(factor))
+    return float(np.sqrt(np.sum(taps ** 2)))
+
+
+def fit_rate_noise_std_m(recording: RigRecording, factor: int) -> np.ndarray | None:
+    """(4,) white-noise std per channel (m) of ``recording`` once decimated by ``factor``, where the decimated
+    record's own band cannot show it (:func:`noise_read_at_record_rate`), else ``None`` (the diagnosis reads it
+    there). Read from the record at its own rate above 10x its fastest speed (the periodogram's median, as the
+    diagnosis reads it, :func:`.context.noise_std_from_spectrum`) times :func:`filter_noise_gain`. Rows with a
+    non-finite probe sample are left out; ``None`` too without keyphasor pulses (no factor above 1 is picked then)."""
+    from rotor_estimator.diagnosis.context import noise_band_low_hz, noise_std_from_spectrum
+
+    fastest_hz = _fastest_speed_hz(recording)
+    rate_hz = 1.0 / (float(np.median(np.diff(recording.stamps_ns))) * 1e-9)
+    if fastest_hz is None or not noise_read_at_record_rate(rate_hz, factor, fastest_hz):
+        return None
+    y = recording.probes_m[np.all(np.isfinite(recording.probes_m), axis=1)]
+    sigma = noise_std_from_spectrum(y - y.mean(axis=0), rate_hz, noise_band_low_hz(rate_hz, 2 * np.pi * fastest_hz))
+    return sigma * filter_noise_gain(factor)
 
 
 def automatic_factor(recording: RigRecording) -> tuple[int, str]:
     """The factor ``decimate="auto"`` (the diagnosis's default) picks, and why: the largest of at most
-    ``AUTO_MAX_FACTOR`` that keeps ten times the running speed (from the keyphasor) in the flat band, while the
-    filter's edges are at most ``AUTO_MAX_EDGE_FRACTION`` of the record (a short record keeps its rate). An impact
-    or a transient in the edges does not stop it: :func:`decimated` keeps such edges unfiltered
+    ``AUTO_MAX_FACTOR`` that keeps ``RESPONSE_ORDER`` x the running speed (from the keyphasor) in the flat band,
+    while the filter's edges are at most ``AUTO_MAX_EDGE_FRACTION`` of the record (a short record keeps its
+    rate). An impact or a transient in the edges does not stop it: :func:`decimated` keeps such edges unfiltered
     (:func:`edge_handling`). 1 for a record without keyphasor pulses (its band cannot be checked)."""
     n = len(recording)
     fastest_hz = _fastest_speed_hz(recording)
@@ -79,15 +122,16 @@ def automatic_factor(recording: RigRecording) -> tuple[int, str]:
         return 1, "no keyphasor pulses to check the band against"
     period_s = float(np.median(np.diff(recording.stamps_ns))) * 1e-9
     q = largest_factor(1.0 / period_s, fastest_hz, limit=AUTO_MAX_FACTOR)
-    why = f"10x the speed ({10 * fastest_hz:.0f} Hz) needs the full rate"
+    top_hz = RESPONSE_ORDER * fastest_hz
+    why = f"{RESPONSE_ORDER:g}x the speed ({top_hz:.0f} Hz) needs the full rate"
     for factor in range(q, 1, -1):
         half = HALF_TAPS_PER_FACTOR * factor
         if 2 * half > AUTO_MAX_EDGE_FRACTION * n:
             why = (f"a factor of {factor} would filter only {n - 2 * half} of the {n} samples (the filter's edges: "
                    f"{half} at each end)")
         else:
-            return factor, (f"10x the speed ({10 * fastest_hz:.0f} Hz) stays below {FLAT_FRACTION:g} of the new "
-                            f"rate")
+            return factor, (f"{RESPONSE_ORDER:g}x the speed ({top_hz:.0f} Hz) stays below {FLAT_FRACTION:g} of the "
+                            f"new rate")
     return 1, why
 
 
@@ -171,8 +215,8 @@ def _fastest_speed_hz(recording: RigRecording) -> float | None:
 def decimated(recording: RigRecording, factor: int) -> RigRecording:
     """``recording`` low-pass filtered and sampled every ``factor``-th sample (module docstring); ``factor`` 1
     returns it unchanged. Raises :class:`InputError` naming ``decimate`` for a factor that is not a positive
-    integer, one that would put ten times the running speed above the filter's flat band, or a record too short
-    for the filter's edges."""
+    integer, one that would put ``RESPONSE_ORDER`` x the running speed above the filter's flat band, or a record
+    too short for the filter's edges."""
     if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
         raise InputError(f"decimate: the factor must be a positive integer, got {factor!r}")
     factor = int(factor)
@@ -189,7 +233,7 @@ def decimated(recording: RigRecording, factor: int) -> RigRecording:
         allowed = largest_factor(1.0 / period_s, fastest_hz, limit=factor)
         if allowed < factor:
             raise InputError(
-                f"decimate: a factor of {factor} puts {NOISE_BAND_ORDER:g}x the running speed ({fastest_hz:.1f} Hz "
+                f"decimate: a factor of {factor} puts {RESPONSE_ORDER:g}x the running speed ({fastest_hz:.1f} Hz "
                 f"from the keyphasor) above {FLAT_FRACTION:g} of the new rate ({1.0 / period_s / factor:.0f} Hz); "
                 f"this record allows at most {allowed}")
     taps = half_band_taps(factor)

@@ -20,14 +20,31 @@ CHANNELS = ("xp1", "yp1", "xp2", "yp2")
 N_ORDERS = 8
 
 
-def _orders(e: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Phasors (H, 4) complex ``X_h`` with ``e ~ Re(sum X_h exp(j h theta))`` and the order fit (N, 4)."""
+#: Orders are tracked up to this share of the sampling rate (a decimated record's flat band,
+#: :data:`.decimation.FLAT_FRACTION`): an order above it is filtered out of the record, and its columns would
+#: alias onto a lower frequency and take a non-synchronous line there.
+ORDER_BAND_FRACTION = 0.45
+
+
+def _tracked_orders(fs: float, speed_rad_s: np.ndarray) -> int:
+    """How many orders 1X.. stay below :data:`ORDER_BAND_FRACTION` of ``fs`` at the fastest speed (<= N_ORDERS)."""
+    fastest_hz = float(np.max(speed_rad_s)) / (2 * np.pi) if speed_rad_s.size else 0.0
+    if fastest_hz <= 0:
+        return N_ORDERS
+    return int(np.clip(np.floor(ORDER_BAND_FRACTION * fs / fastest_hz), 0, N_ORDERS))
+
+
+def _orders(e: np.ndarray, angle: np.ndarray, n_orders: int = N_ORDERS) -> tuple[np.ndarray, np.ndarray]:
+    """Phasors (N_ORDERS, 4) complex ``X_h`` with ``e ~ Re(sum X_h exp(j h theta))`` and the order fit (N, 4);
+    the orders above ``n_orders`` are not fitted (their phasors zero)."""
     cols = [np.ones_like(angle)]
-    for h in range(1, N_ORDERS + 1):
+    for h in range(1, n_orders + 1):
         cols += [np.cos(h * angle), np.sin(h * angle)]
     basis = np.column_stack(cols)
     coef, *_ = np.linalg.lstsq(basis, e, rcond=None)
-    ph = np.array([coef[2 * h - 1] - 1j * coef[2 * h] for h in range(1, N_ORDERS + 1)])
+    ph = np.zeros((N_ORDERS, e.shape[1]), complex)
+    for h in range(1, n_orders + 1):
+        ph[h - 1] = coef[2 * h - 1] - 1j * coef[2 * h]
     return ph, basis @ coef
 
 
@@ -59,8 +76,8 @@ def nonsync_peak_frequencies_hz(t_s: np.ndarray, residual_m: np.ndarray, angle_r
     orders 1X..8X are removed: the ``nonsync_peaks`` of :func:`budget`, strongest first. An unmodelled mode
     rung by an impact or by the start from rest shows here (at the frequency of the whole system's mode)."""
     e = residual_m - residual_m.mean(axis=0)
-    _, fit = _orders(e, angle_rad)
     fs = 1.0 / float(np.median(np.diff(t_s)))
+    _, fit = _orders(e, angle_rad, _tracked_orders(fs, speed_rad_s))
     speed_hz = float(np.mean(speed_rad_s)) / (2 * np.pi)
     return [p["frequency_hz"] for p in _peaks(e - fit, fs, speed_hz, n_peaks)]
 
@@ -74,7 +91,7 @@ def budget(t_s: np.ndarray, residual_m: np.ndarray, angle_rad: np.ndarray, speed
     sigma2 = np.asarray(noise_std_m, dtype=float) ** 2
     total = np.mean(e ** 2, axis=0)                      # (4,)
     excess_ch = np.maximum(total - sigma2, 0.0)
-    ph, fit = _orders(e, angle_rad)
+    ph, fit = _orders(e, angle_rad, _tracked_orders(fs, speed_rad_s))
     rest = e - fit
     speed_hz = float(np.mean(speed_rad_s)) / (2 * np.pi)
     bands: dict[str, np.ndarray] = {}

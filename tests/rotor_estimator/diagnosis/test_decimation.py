@@ -10,8 +10,9 @@ from rotor_estimator.core.errors import InputError
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.diagnosis.decimation import (AUTO_MAX_EDGE_TRANSIENT_RATIO, AUTO_MAX_FACTOR,
                                                   HALF_TAPS_PER_FACTOR, automatic_factor, decimated,
-                                                  edge_handling, edge_transient_ratio, half_band_taps,
-                                                  largest_factor, resolved_factor)
+                                                  edge_handling, edge_transient_ratio, filter_noise_gain,
+                                                  fit_rate_noise_std_m, half_band_taps, largest_factor,
+                                                  noise_read_at_record_rate, resolved_factor)
 
 FS_HZ = 20000.0
 
@@ -75,20 +76,21 @@ def test_the_impact_impulse_the_stamps_and_the_keyphasor_are_kept():
     assert decimated(rec, 1) is rec
 
 
-def test_the_largest_factor_keeps_ten_times_the_speed_in_the_flat_band():
-    """At 20 kHz a 400 Hz rotor allows 2 (4 kHz below 0.45 x 10 kHz), a 200 Hz one 4, a 1 kHz one none."""
-    assert largest_factor(FS_HZ, 400.0) == 2
-    assert largest_factor(FS_HZ, 200.0) == 4
-    assert largest_factor(FS_HZ, 1000.0) == 1
+def test_the_largest_factor_keeps_five_times_the_speed_in_the_flat_band():
+    """At 20 kHz a 400 Hz rotor allows 4 (2 kHz below 0.45 x 5 kHz; 5 would put it above 0.45 x 4 kHz), a 200 Hz
+    one 9 (capped by the limit), a 2 kHz one none."""
+    assert largest_factor(FS_HZ, 400.0) == 4
+    assert largest_factor(FS_HZ, 200.0, limit=20) == 9 and largest_factor(FS_HZ, 200.0) == 8
+    assert largest_factor(FS_HZ, 2000.0) == 1
     assert largest_factor(FS_HZ, 10.0, limit=3) == 3
 
 
 @pytest.mark.parametrize("factor,match", [(0, "positive integer"), (1.5, "positive integer"),
                                           (True, "positive integer"), (5, "allows at most 4")])
 def test_a_bad_or_unsafe_factor_is_refused_naming_decimate(factor, match):
-    """A factor that is not a positive integer, or one that would put 10x the running speed (from the keyphasor)
+    """A factor that is not a positive integer, or one that would put 5x the running speed (from the keyphasor)
     above the flat band of the new rate, is an InputError naming ``decimate``, not a silently aliased record."""
-    rec = _record(np.zeros((8000, 4)), speed_hz=200.0)
+    rec = _record(np.zeros((16000, 4)), speed_hz=400.0)
     with pytest.raises(InputError, match=f"decimate: .*{match}"):
         decimated(rec, factor)
 
@@ -129,26 +131,29 @@ def test_a_decimated_record_carries_the_same_information_on_the_parameters():
     assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
 
 
-def test_auto_picks_at_most_two_where_the_speed_and_the_length_allow():
-    """``decimate="auto"``: a 0.5 s record at 20 kHz of a 200 Hz rotor gets 2 (4 would pass the band, the cap is
-    the factor checked on the blind sets); a 500 Hz rotor (5 kHz above 0.45 x 10 kHz) keeps the full rate; a 0.15 s
-    record too (its filter edges would be 13 % of it), and one without keyphasor pulses (its band cannot be
-    checked). An impact inside the filter's edges no longer keeps the full rate: the edges are kept unfiltered
+def test_auto_picks_at_most_four_where_the_speed_and_the_length_allow():
+    """``decimate="auto"``: a 0.5 s record at 20 kHz of a 200 Hz rotor gets 4 (8 would pass the band, the cap is
+    the factor checked on the blind sets); a 500 Hz rotor 3 (2.5 kHz above 0.45 x 5 kHz at 4); a 2 kHz rotor
+    keeps the full rate; a 0.15 s record too (its filter edges would be 13 % of it even at 2), a 0.25 s one gets 2
+    (at 3 the edges would be 12 %), and one without keyphasor pulses keeps it (its band cannot be checked). An
+    impact inside the filter's edges does not keep the full rate: the edges are kept unfiltered
     (:func:`edge_handling`). Each says why."""
     n = 10000
-    assert AUTO_MAX_FACTOR == 2 and largest_factor(FS_HZ, 200.0) == 4
+    assert AUTO_MAX_FACTOR == 4 and largest_factor(FS_HZ, 200.0) == 8
     q, why = automatic_factor(_record(np.zeros((n, 4)), speed_hz=200.0))
-    assert q == 2 and "below 0.45 of the new rate" in why
-    q, why = automatic_factor(_record(np.zeros((n, 4)), speed_hz=500.0))
+    assert q == 4 and "5x the speed (1000 Hz) stays below 0.45 of the new rate" in why
+    assert automatic_factor(_record(np.zeros((n, 4)), speed_hz=500.0))[0] == 3
+    q, why = automatic_factor(_record(np.zeros((n, 4)), speed_hz=2000.0))
     assert q == 1 and "needs the full rate" in why
     q, why = automatic_factor(_record(np.zeros((3000, 4))))
     assert q == 1 and "filter only 2600 of the 3000 samples (the filter's edges" in why
+    assert automatic_factor(_record(np.zeros((5000, 4))))[0] == 2
     for at in (150, n - 150):
         force = np.zeros((n, 2))
         force[at] = [100.0, 0.0]
         rec = _record(np.zeros((n, 4)), force)
-        assert automatic_factor(rec)[0] == 2
-        assert edge_handling(rec, 2) == ("keep", "an impact in them")
+        assert automatic_factor(rec)[0] == 4
+        assert edge_handling(rec, 4) == ("keep", "an impact in them")
     no_pulses = _record(np.zeros((n, 4)))
     no_pulses = RigRecording(no_pulses.stamps_ns, no_pulses.probes_m, no_pulses.pulse_stamps_ns[:1],
                              no_pulses.impact_force_n)
@@ -187,7 +192,7 @@ def test_kept_edges_are_the_raw_samples_on_the_same_grid_and_keep_the_impact_and
 def test_resolved_factor_takes_auto_or_a_factor_and_names_decimate_otherwise():
     """An integer passes through (checked later by ``decimated``); ``"auto"`` is resolved; other text is refused."""
     rec = _record(np.zeros((10000, 4)))
-    assert resolved_factor(rec, 3) == (3, "as asked") and resolved_factor(rec, "auto")[0] == 2
+    assert resolved_factor(rec, 3) == (3, "as asked") and resolved_factor(rec, "auto")[0] == 4
     with pytest.raises(InputError, match="decimate: 'auto' or a positive integer, got 'fast'"):
         resolved_factor(rec, "fast")
 
@@ -208,14 +213,14 @@ def test_a_steady_record_reads_noise_at_its_edges_and_one_from_rest_a_transient(
     """``edge_transient_ratio``: a steady 1X + 2X record with 1 um noise is periodic at its edges (ratio within
     0.8-1.2: the difference is noise alone), and its edges are dropped; the same orbit rising from rest with a
     20 ms time constant is not periodic in its first 10 ms (ratio 2.4 here): its edges are kept unfiltered, saying
-    why. Both are decimated by auto."""
+    why. Both are decimated by auto (by 4: 5x the speed is below 0.45 of 5 kHz)."""
     n = 10000
     steady = _record(_rotor_response(n, 200.0, 1e-6, seed))
     assert 0.8 < edge_transient_ratio(steady, 200) < 1.2
-    assert automatic_factor(steady)[0] == 2 and edge_handling(steady, 2)[0] == "drop"
+    assert automatic_factor(steady)[0] == 4 and edge_handling(steady, 2)[0] == "drop"
     from_rest = _record(_rotor_response(n, 200.0, 1e-6, seed, rise_s=0.02))
     assert edge_transient_ratio(from_rest, 200) > 2 > AUTO_MAX_EDGE_TRANSIENT_RATIO
-    assert automatic_factor(from_rest)[0] == 2
+    assert automatic_factor(from_rest)[0] == 4
     how, why = edge_handling(from_rest, 2)
     assert how == "keep" and "transient" in why
 
@@ -230,3 +235,27 @@ def test_a_dropout_away_from_the_edges_leaves_them_dropped_and_one_in_an_edge_ke
     probes[50, 2] = np.nan
     how, why = edge_handling(_record(probes), 2)
     assert how == "keep" and "cannot be checked" in why
+
+
+@pytest.mark.parametrize("speed_hz", [250.0, 400.0])
+def test_the_noise_floor_of_a_record_decimated_below_ten_times_its_speed_is_carried_from_its_own_rate(speed_hz):
+    """Decimated by 4 (5 kHz), a 250 or 400 Hz rotor's 10x (2.5, 4 kHz) is above 0.3 of the new rate, where the
+    new rate's band cannot show the noise (400 Hz: above its flat band): it is read at 20 kHz above 10x the speed
+    and carried through the filter's white-noise gain, and matches the std of the decimated noise itself (3 %)
+    under a rotor's 1X and 2X that it does not pick up. The gain is about 1 / sqrt(4)."""
+    n, q, sigma = 40000, 4, 1e-6
+    rec = _record(_rotor_response(n, speed_hz, sigma, 5), speed_hz=speed_hz)
+    assert noise_read_at_record_rate(FS_HZ, q, speed_hz)
+    noise_only = decimated(_record(np.random.default_rng(5).normal(scale=sigma, size=(n, 4)), speed_hz=speed_hz), q)
+    carried = fit_rate_noise_std_m(rec, q)
+    assert carried is not None and carried.shape == (4,)
+    assert np.all(np.abs(carried / np.std(noise_only.probes_m, axis=0) - 1.0) < 0.03), carried
+    assert abs(filter_noise_gain(q) * np.sqrt(q) - 1.0) < 0.02
+
+
+def test_the_noise_floor_stays_at_the_fits_rate_where_its_band_above_ten_times_the_speed_was_checked():
+    """Decimated by 2 (10 kHz), a 200 Hz rotor's 10x (2 kHz) is below 0.3 of the new rate: the diagnosis reads
+    the noise there, as before the noise could be carried (``None``); so does a record left at its rate."""
+    rec = _record(_rotor_response(10000, 200.0, 1e-6, 6), speed_hz=200.0)
+    assert not noise_read_at_record_rate(FS_HZ, 2, 200.0) and fit_rate_noise_std_m(rec, 2) is None
+    assert fit_rate_noise_std_m(rec, 1) is None

@@ -462,3 +462,27 @@ def test_a_decimated_diagnosis_says_how_it_was_decimated_and_sees_the_same_noise
 
     (c1, s1), (c2, s2) = nominal(full), nominal(half)
     assert np.all(np.abs(c2 - c1) < 3.0 * np.hypot(s1, s2)), (c2 - c1) / np.hypot(s1, s2)
+
+
+def test_a_diagnosis_decimated_by_four_carries_its_noise_floor_from_the_records_rate(rig_file, short_control):
+    """``diagnose(..., decimate=4)`` of a 333 Hz rotor at 20 kHz: 10x its speed (3.3 kHz) is above the new rate's
+    flat band (2.25 kHz), so the noise floor is read at the record's rate and carried through the filter (data says
+    where it was read); it is the full rate's over sqrt(4) within 5 %, and the nominal coefficients agree with the
+    full rate's within 3 of their stds."""
+    import rotor_estimator.diagnosis.api as api
+
+    full = api.diagnose(short_control.recording, rig_file.rig, rig_file.estimator, library=(), decimate=1)
+    quarter = api.diagnose(short_control.recording, rig_file.rig, rig_file.estimator, library=(), decimate=4)
+    d = quarter.summary()["data"]["decimation"]
+    assert (d["factor"], abs(d["sample_rate_hz"] - 5000.0) < 1e-6) == (4, True)
+    assert d["noise_floor_read_at"].startswith("the record's rate")
+    assert full.summary()["data"]["decimation"]["noise_floor_read_at"] == "the fits' rate"
+    ratio = quarter.ctx.noise_std_m / full.ctx.noise_std_m
+    assert np.all(np.abs(ratio * 2.0 - 1.0) < 0.05), ratio
+
+    def nominal(d):
+        row = d.table[0]
+        return np.array(list(row["coefficients"].values())), np.array(list(row["coefficients_std"].values()))
+
+    (c1, s1), (c4, s4) = nominal(full), nominal(quarter)
+    assert np.all(np.abs(c4 - c1) < 3.0 * np.hypot(s1, s4)), (c4 - c1) / np.hypot(s1, s4)

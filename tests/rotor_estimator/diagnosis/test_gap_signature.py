@@ -53,3 +53,19 @@ def test_a_gap_after_the_impact_says_so():
         tau = np.clip(t - t[k], 0, None)
         e[:, 1] += np.where(t >= t[k], 3e-6 * np.exp(-tau / 0.01) * np.sin(2 * np.pi * 1700 * tau), 0.0)
     assert "strongest in the 50 ms after the impacts" in gap_signature(_budget(e, (1000, 5000)))
+
+
+def test_orders_above_the_flat_band_of_a_decimated_rate_are_not_tracked_and_do_not_hide_a_line():
+    """At 5 kHz (a record decimated by 4) and 400 Hz, 6X-8X (2.4-3.2 kHz) are above 0.45 of the rate: they are
+    not fitted (zero power), so a fixed-frequency line at 1.8 kHz, where 8X's columns alias (5 - 3.2 kHz), is still
+    reported as a peak; 1X-5X are tracked."""
+    fs, speed = 5000.0, 2 * np.pi * 400.0
+    t = np.arange(4000) / fs
+    e = np.zeros((t.size, 4))
+    e[:, 0] = 2e-6 * np.sin(2 * np.pi * 1800.0 * t + 0.3) + 1e-6 * np.cos(speed * t)
+    noise = np.random.default_rng(1).normal(scale=1e-7, size=e.shape)
+    b = budget(t, e + noise, speed * t, np.full(t.size, speed), np.zeros((t.size, 2)), np.full(4, 1e-7))
+    bands = {r["band"]: r for r in b["bands"]}
+    assert all(bands[f"{h}X"]["rms_m"] == 0.0 for h in (6, 7, 8))
+    assert bands["1X"]["per_channel_rms_m"][0] == pytest.approx(1e-6 / np.sqrt(2), rel=0.02)
+    assert [round(p["frequency_hz"]) for p in b["nonsync_peaks"]][:1] == [1800]
