@@ -22,8 +22,9 @@ when they are steady and hold no impact (the rest of the record repeats them); o
 impact there) they are kept unfiltered on the same grid, every ``q``-th raw sample: their in-band signal is exact
 and their noise variance ``q`` times the filtered samples' (:func:`edge_handling`). Such a record was kept at
 the full rate before, at four times the cost.
-The impact force, held over each sample period (:class:`.core.recording.RigRecording`), is held over each new
-period at its mean there, which keeps its impulse. The keyphasor stamps are kept as they are.
+The impact force, held over each sample period (:class:`.core.recording.RigRecording`), is held over the new
+periods so that each raw sample's impulse and centroid are kept (:func:`held_impact_force`). The keyphasor
+stamps are kept as they are.
 """
 from __future__ import annotations
 
@@ -212,6 +213,32 @@ def _fastest_speed_hz(recording: RigRecording) -> float | None:
     return float(1.0 / np.percentile(periods_s, 5)) if periods_s.size else None
 
 
+def held_impact_force(force_n: np.ndarray, index: np.ndarray, factor: int) -> np.ndarray:
+    """(len(index), 2) impact force (N) held over the new periods ``[index[k], index[k] + factor)`` (raw
+    samples; a uniform grid) that keeps each raw sample's impulse and its centroid: a raw sample held over
+    ``[j, j + 1)`` has its centre at ``(j - index[k] + 0.5) / factor`` of the way through its new period ``k``;
+    its impulse is split between that period and the neighbour on the side of its centre, in the proportions
+    that put the pair's centroid where the raw sample's is (linear interpolation between the periods' centres).
+    So the impulse and its first moment are kept (at the record's first and last periods, where there is no
+    neighbour, the impulse alone). Held at its mean over each period instead, a hammer pulse of 150 us in a
+    200 us period (decimated by 4 from 20 kHz) was moved by up to 75 us: the response after it came out 1.8-2.8 %
+    of its peak off the filtered full-rate response, against 0.4-0.7 % so (test). A raw sample outside the grid
+    (a dropped edge holds no impact: :func:`edge_handling`) goes to the nearest period."""
+    force = np.asarray(force_n, dtype=float)
+    held = np.zeros((index.size, force.shape[1]))
+    rows = np.flatnonzero(np.any(force != 0.0, axis=1))
+    if rows.size == 0:
+        return held
+    k = np.clip(np.searchsorted(index, rows, side="right") - 1, 0, index.size - 1)
+    alpha = np.clip((rows - index[k] + 0.5) / factor - 0.5, -0.5, 0.5)  # the centre's offset, in periods
+    other = np.clip(k + np.sign(alpha).astype(int), 0, index.size - 1)
+    share = np.where(other == k, 0.0, np.abs(alpha))
+    per_period = force[rows] / factor  # the raw sample's impulse as a force held over one new period
+    np.add.at(held, k, (1.0 - share)[:, None] * per_period)
+    np.add.at(held, other, share[:, None] * per_period)
+    return held
+
+
 def decimated(recording: RigRecording, factor: int) -> RigRecording:
     """``recording`` low-pass filtered and sampled every ``factor``-th sample (module docstring); ``factor`` 1
     returns it unchanged. Raises :class:`InputError` naming ``decimate`` for a factor that is not a positive
@@ -248,9 +275,7 @@ def decimated(recording: RigRecording, factor: int) -> RigRecording:
         probes = np.concatenate([recording.probes_m[head], filtered[inner - half], recording.probes_m[tail]])
     else:
         index, probes = inner, filtered[inner - half]
-    # the impact force held over each new period at its mean there (its impulse kept; zeros past the record's end)
-    force = np.concatenate([recording.impact_force_n, np.zeros((factor, recording.impact_force_n.shape[1]))])
-    held = np.mean(np.stack([force[index + j] for j in range(factor)]), axis=0)
+    held = held_impact_force(recording.impact_force_n, index, factor)
     meta = {**recording.meta, "decimation": {
         "factor": factor, "filter_taps": int(taps.size), "edge_samples": half,
         "edges": "kept unfiltered" if edges == "keep" else "dropped", "edges_why": edges_why,
