@@ -936,3 +936,39 @@ def test_a_structure_its_own_refitted_single_does_not_show_is_not_refitted_as_a_
     # a structural pair among the best by its first pass is refitted however its single fared
     first = [pairs[3], *pairs[:3], *pairs[4:]]
     assert pairs_to_refit(first, pool, "misalignment", by_name, unseen)[0] == ("best first pass",)
+
+
+def test_the_verdict_stands_only_by_the_threshold_and_a_held_out_span_no_worse():
+    """:func:`verdict_stands` is the selection rule on the converged model: ``threshold`` in BIC below the
+    reference (exactly at it counts) and a held-out RMS within the tolerance of the reference's."""
+    from rotor_estimator.diagnosis.ranking import HELD_OUT_TOLERANCE, verdict_stands
+
+    fit = lambda bic, held_out: SimpleNamespace(bic=bic, held_out_rms_m=held_out)  # noqa: E731
+    assert verdict_stands(fit(-130.0, 1e-6), -100.0, 1e-6, threshold=30.0)
+    assert not verdict_stands(fit(-129.0, 1e-6), -100.0, 1e-6, threshold=30.0)
+    assert verdict_stands(fit(-200.0, 1e-6 * (1 + 0.5 * HELD_OUT_TOLERANCE)), -100.0, 1e-6, threshold=30.0)
+    assert not verdict_stands(fit(-200.0, 1e-6 * (1 + 2 * HELD_OUT_TOLERANCE)), -100.0, 1e-6, threshold=30.0)
+
+
+@pytest.mark.slow
+def test_a_verdict_whose_converged_refit_loses_its_evidence_names_no_effect(monkeypatch):
+    """A residual unbalance that clears the threshold is named; when its converged (verdict) refit is made to
+    lose that evidence (its BIC set to the reference's), no effect is named, none is tied, and the ranking shows
+    the converged fit, not the claim it started from (seen on independent records of a clearance contact: a
+    pedestal named after its converged refit ended with a residual above the nominal model's)."""
+    from rotor_estimator.diagnosis import ranking
+    from rotor_estimator.diagnosis.effects import ResidualUnbalance
+
+    ctx = _short_unbalance_context(impact=True)
+    named = rank_effects(ctx, library=(ResidualUnbalance(),), second_stage=False)
+    assert named.best is not None and named.best.name == "residual_unbalance"
+    real_refine = ranking.refine
+
+    def losing(ctx, effect, fit, base=(), *, why="", **options):
+        out = real_refine(ctx, effect, fit, base, why=why, **options)
+        return replace(out, bic=options["reference_bic"], delta_bic=0.0) if why == "verdict" else out
+
+    monkeypatch.setattr(ranking, "refine", losing)
+    rk = rank_effects(ctx, library=(ResidualUnbalance(),), second_stage=False)
+    assert rk.best is None and rk.second is None and not rk.tied
+    assert rk.singles[0].name == "residual_unbalance" and rk.singles[0].delta_bic == 0.0
