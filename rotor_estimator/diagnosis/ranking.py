@@ -41,6 +41,9 @@ from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Pr
 from rotor_estimator.diagnosis.posterior_sampling import draws_cov_about
 from rotor_estimator.diagnosis.secant_jacobian import least_squares_secant
 
+#: Selectable pairs continued to convergence, best first, until one still beats the top single after it
+#: (:func:`verdict_stands`); none does: the top single is judged alone.
+VERDICT_PAIR_TRIES = 3
 #: Minimum BIC improvement for an effect to count (``exp(-10)`` posterior odds against chance: "very strong").
 SIGNIFICANCE_DELTA_BIC = 30.0
 #: Two significant effects are a tie when the data do not tell them apart, only the parameter count would
@@ -387,6 +390,22 @@ def verdict_stands(fit: "EffectFit", reference_bic: float, reference_held_out_rm
     """
     return bool(fit.bic <= reference_bic - threshold and predicts_held_out(fit.held_out_rms_m,
                                                                          reference_held_out_rms_m))
+
+
+def first_standing_pair(selectable: list["EffectFit"], converge, top: "EffectFit",
+                        threshold: float = SIGNIFICANCE_DELTA_BIC, tries: int = VERDICT_PAIR_TRIES):
+    """The first of ``selectable`` (best first) whose converged fit ``converge(pair)`` still beats the top single
+    ``top`` (:func:`verdict_stands`, its members not cancelling), trying at most ``tries``; ``None`` when none does.
+
+    Returns it and ``{id(pair): converged fit}`` of every pair tried, so the ranking shows what converged.
+    """
+    converged: dict[int, EffectFit] = {}
+    for pair in selectable[:tries]:
+        fit = converge(pair)
+        converged[id(pair)] = fit
+        if verdict_stands(fit, top.bic, top.held_out_rms_m, threshold) and fit.net_fraction >= MIN_PAIR_NET_FRACTION:
+            return fit, converged
+    return None, converged
 
 
 def nominal_solution(ctx: FitContext) -> tuple[LinearSolution, float, float]:
@@ -1425,8 +1444,9 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
        nests in a leading pair's member (:attr:`.Effect.nests_in`) is fitted in its place too
        (:func:`substituted_pairs`), and a leading pair's member in its leaner forms (:func:`leaner_member_pairs`);
     5. the verdict continued to convergence and the selection rule checked again on it (:func:`verdict_stands`):
-       a pair that no longer beats the top single leaves the single to be judged alone, a single that no longer
-       clears the threshold names no effect (the gap is then described, not named).
+       a pair that no longer beats the top single gives way to the next selectable pair (at most
+       :data:`VERDICT_PAIR_TRIES`), then to the single judged alone; a single that no longer clears the threshold
+       names no effect (the gap is then described, not named).
     """
     say = progress or (lambda text: None)
     sol0, bic0, ho0 = nominal_solution(ctx)
@@ -1558,20 +1578,22 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
                 pool.append(a)  # the verdict finds a pair's base single in the pool
         pairs.sort(key=lambda f: f.bic)
         # the selected pair: the smallest BIC among those that beat the top single by the threshold, predict
-        # the held-out span no worse and whose members do not cancel each other
-        cand = next((p for p in pairs if p.bic <= top.bic - threshold
-                     and predicts_held_out(p.held_out_rms_m, top.held_out_rms_m)
-                     and p.net_fraction >= MIN_PAIR_NET_FRACTION), None)
+        # the held-out span no worse and whose members do not cancel each other, once continued to convergence:
+        # a pair that no longer does is dropped for the next (at most VERDICT_PAIR_TRIES), then the single
+        selectable = [p for p in pairs if p.bic <= top.bic - threshold
+                      and predicts_held_out(p.held_out_rms_m, top.held_out_rms_m)
+                      and p.net_fraction >= MIN_PAIR_NET_FRACTION]
+
+        def converge(pair: EffectFit) -> EffectFit:
+            say("verdict: the selected pair continued to convergence")
+            base = _base_single(pool, pair)
+            return refine(base.ctx or ctx, _form(pair, by_name), pair, (base,), reference_bic=top.bic,
+                          max_nfev=VERDICT_NFEV, polish_nfev=0, why="verdict")
+
+        cand, converged = first_standing_pair(selectable, converge, top, threshold)
+        pairs = sorted([converged.get(id(p), p) for p in pairs], key=lambda f: f.bic)
         if cand is not None:
             a_fit = _base_single(pool, cand)
-            say("verdict: the selected pair continued to convergence")
-            converged = refine(a_fit.ctx or ctx, _form(cand, by_name), cand, (a_fit,), reference_bic=top.bic,
-                               max_nfev=VERDICT_NFEV, polish_nfev=0, why="verdict")
-            pairs = sorted([converged if p is cand else p for p in pairs], key=lambda f: f.bic)
-            cand = converged if verdict_stands(converged, top.bic, top.held_out_rms_m, threshold) else None
-            if cand is None:
-                say("verdict: the converged pair no longer beats the top single; the single is judged alone")
-        if cand is not None:
             say("coefficient uncertainty: likelihood profiles of the verdict's model")
             cand = with_coupled_covariance(cand, (a_fit,))
             cand = _parameters_widened(_profiled(cand, a_fit.ctx or ctx, _form(cand, by_name), (a_fit,)))

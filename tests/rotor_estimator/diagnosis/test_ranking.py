@@ -972,3 +972,30 @@ def test_a_verdict_whose_converged_refit_loses_its_evidence_names_no_effect(monk
     rk = rank_effects(ctx, library=(ResidualUnbalance(),), second_stage=False)
     assert rk.best is None and rk.second is None and not rk.tied
     assert rk.singles[0].name == "residual_unbalance" and rk.singles[0].delta_bic == 0.0
+
+
+def test_a_pair_that_no_longer_beats_the_top_single_once_converged_gives_way_to_the_next():
+    """:func:`first_standing_pair` converges the selectable pairs best first and returns the first that still
+    beats the top single by the threshold with its members not cancelling; it tries at most ``tries`` and reports
+    every converged fit (the ranking shows them), and returns none when none stands (the single is then judged)."""
+    from rotor_estimator.diagnosis.ranking import MIN_PAIR_NET_FRACTION, first_standing_pair
+
+    top = SimpleNamespace(bic=-1000.0, held_out_rms_m=1e-6)
+    fit = lambda name, bic, net=1.0: SimpleNamespace(name=name, bic=bic, held_out_rms_m=1e-6,  # noqa: E731
+                                                    net_fraction=net)
+    # claimed BICs, and what each becomes once converged
+    claimed = [fit("a", -2000.0), fit("b", -1800.0), fit("c", -1700.0), fit("d", -1600.0)]
+    after = {"a": fit("a", -1010.0), "b": fit("b", -1500.0, net=0.5 * MIN_PAIR_NET_FRACTION),
+             "c": fit("c", -1400.0), "d": fit("d", -1300.0)}
+    calls = []
+
+    def converge(p):
+        calls.append(p.name)
+        return after[p.name]
+
+    chosen, converged = first_standing_pair(claimed, converge, top, threshold=30.0, tries=3)
+    assert chosen is after["c"] and calls == ["a", "b", "c"]
+    assert [converged[id(p)] for p in claimed[:3]] == [after["a"], after["b"], after["c"]]
+    calls.clear()
+    chosen, converged = first_standing_pair(claimed, converge, top, threshold=30.0, tries=2)
+    assert chosen is None and calls == ["a", "b"] and len(converged) == 2
