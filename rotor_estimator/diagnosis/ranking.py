@@ -403,9 +403,15 @@ def first_standing_pair(selectable: list["EffectFit"], converge, top: "EffectFit
     for pair in selectable[:tries]:
         fit = converge(pair)
         converged[id(pair)] = fit
-        if verdict_stands(fit, top.bic, top.held_out_rms_m, threshold) and fit.net_fraction >= MIN_PAIR_NET_FRACTION:
+        if pair_stands(fit, top, threshold):
             return fit, converged
     return None, converged
+
+
+def pair_stands(pair: "EffectFit", top: "EffectFit", threshold: float = SIGNIFICANCE_DELTA_BIC) -> bool:
+    """A pair's selection rule: :func:`verdict_stands` against the top single ``top``, its members not
+    cancelling each other (net output at least :data:`MIN_PAIR_NET_FRACTION` of its larger member's)."""
+    return verdict_stands(pair, top.bic, top.held_out_rms_m, threshold) and pair.net_fraction >= MIN_PAIR_NET_FRACTION
 
 
 def nominal_solution(ctx: FitContext) -> tuple[LinearSolution, float, float]:
@@ -1580,9 +1586,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
         # the selected pair: the smallest BIC among those that beat the top single by the threshold, predict
         # the held-out span no worse and whose members do not cancel each other, once continued to convergence:
         # a pair that no longer does is dropped for the next (at most VERDICT_PAIR_TRIES), then the single
-        selectable = [p for p in pairs if p.bic <= top.bic - threshold
-                      and predicts_held_out(p.held_out_rms_m, top.held_out_rms_m)
-                      and p.net_fraction >= MIN_PAIR_NET_FRACTION]
+        selectable = [p for p in pairs if pair_stands(p, top, threshold)]
 
         def converge(pair: EffectFit) -> EffectFit:
             say("verdict: the selected pair continued to convergence")
