@@ -249,6 +249,29 @@ def test_the_compiled_recursions_equal_a_plain_loop_of_their_equations_on_severa
         assert np.allclose(out_c, states_c @ c_out.T, rtol=1e-12, atol=1e-12 * np.abs(out_c).max())
 
 
+@pytest.mark.parametrize("block_samples", [256, 100, 7])
+def test_the_chunked_free_response_equals_the_plain_recursion_across_speed_blocks(block_samples):
+    """``_free_response`` (chunks of ``C Phi^j`` times the chunk's first state, the state carried by
+    ``Phi^CHUNK``) equals, to 1e-12 of the peak, the plain loop ``out[k] = C s[k]``, ``s[k+1] = Phi_b[k] s[k]``:
+    12 states, 10 initial states of them, four speed blocks of ``block_samples`` (256: whole chunks; 100 and 7:
+    chunks cut short by a block's end), a record that ends inside a chunk."""
+    from rotor_estimator.diagnosis.linsim import _free_response
+
+    rng = np.random.default_rng(11)
+    n_samples, n, q = 1003, 12, 10
+    phi = np.stack([expm(0.01 * (rng.normal(size=(n, n)) - 3.0 * np.eye(n))) for _ in range(4)])
+    block = np.minimum(np.arange(n_samples) // block_samples, 3).astype(np.int64)
+    c_out = rng.normal(size=(4, n))
+    s0 = np.ascontiguousarray(np.eye(n)[:, :q])
+    out = _free_response(phi, block, c_out, s0, n_samples, 0.0)
+    s = s0.copy()
+    ref = np.empty_like(out)
+    for k in range(n_samples):
+        ref[k] = c_out @ s
+        s = phi[block[k]] @ s
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
 @pytest.mark.parametrize("form", ["contact", "cubic"])
 def test_a_nonlinear_bearing_at_a_coarse_rate_is_simulated_in_substeps_as_at_the_fine_rate(form):
     """A clearance contact (5 um clearance, a 48 um orbit) and a strong cubic (78 um orbit), each with a hammer
