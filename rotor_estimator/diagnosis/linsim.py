@@ -500,11 +500,29 @@ def _bearing_force(states, k, z0, k3, static, clearance, radial, out):
 
 
 @njit(cache=True)
-def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, clearance, radial):
+def _held_input(us, k, i, substeps, j):
+    """Channel ``j`` of the first-order-held input ``us`` (coarse samples) at substep ``i`` of sample ``k``: the
+    straight line from ``us[k]`` to ``us[k + 1]`` (``i == substeps`` is the next sample's first substep), as
+    a finer grid's samples would hold it; the last sample as it is."""
+    if i == substeps:
+        k += 1
+        i = 0
+    if i == 0 and substeps == 1 or k == us.shape[0] - 1:
+        return us[k, j]
+    f = i / substeps
+    return us[k, j] * (1.0 - f) + us[k + 1, j] * f
+
+
+@njit(cache=True)
+def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, clearance, radial, substeps):
     """The FOH/ZOH recursion with a cubic generalized bearing force (:func:`_bearing_force`), ``z = q[z0:z0+m]``.
 
     The nonlinear force is first-order held too, its end value from a predictor step
     (Heun): ``q+ = Phi q + G1 (u + f(q)) + G2 du``, then ``q[k+1] = q+ + G2 (f(q+) - f(q))``.
+    Each sample period is run in ``substeps`` equal steps (``Phi``, ``G1``, ``G2`` are the substep's), the smooth
+    input on its straight line between samples (:func:`_held_input`), the step input and the speed block held; the
+    outputs and states are kept at the samples only. Bit for bit the recursion over those inputs written out on
+    the finer grid (test).
     """
     n_samples = us.shape[0]
     n = q0.shape[0]
@@ -515,32 +533,38 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, clea
     fk = np.empty(m)
     f1 = np.empty(m)
     pred = np.empty(n)
+    cur = np.empty((1, n))
     for i in range(n):
         states[0, i] = q0[i]
+        cur[0, i] = q0[i]
     phi_t, g1_t, g2_t = _transposed(phi, g1, g2)
     # The predictor below is _propagate's step with the held force added, written out again on purpose: one
     # shared compiled helper for both measured 1.35x slower at 8 states and changed the last bits at 28.
     for k in range(n_samples - 1):
         b = block[k]
-        _bearing_force(states, k, z0, k3, static, clearance, radial, fk)
+        for sub in range(substeps):
+            _bearing_force(cur, 0, z0, k3, static, clearance, radial, fk)
+            for i in range(n):
+                pred[i] = 0.0
+            for j in range(n):
+                s = cur[0, j]
+                for i in range(n):
+                    pred[i] += phi_t[b, j, i] * s
+            for j in range(m):
+                u0 = _held_input(us, k, sub, substeps, j)
+                v = u0 + uz[k, j] + fk[j]
+                d = _held_input(us, k, sub + 1, substeps, j) - u0
+                for i in range(n):
+                    pred[i] += g1_t[b, j, i] * v + g2_t[b, j, i] * d
+            _bearing_force(pred.reshape(1, n), 0, z0, k3, static, clearance, radial, f1)
+            for i in range(n):
+                cur[0, i] = pred[i]
+            for j in range(m):
+                df = f1[j] - fk[j]
+                for i in range(n):
+                    cur[0, i] += g2_t[b, j, i] * df
         for i in range(n):
-            pred[i] = 0.0
-        for j in range(n):
-            s = states[k, j]
-            for i in range(n):
-                pred[i] += phi_t[b, j, i] * s
-        for j in range(m):
-            v = us[k, j] + uz[k, j] + fk[j]
-            d = us[k + 1, j] - us[k, j]
-            for i in range(n):
-                pred[i] += g1_t[b, j, i] * v + g2_t[b, j, i] * d
-        _bearing_force(pred.reshape(1, n), 0, z0, k3, static, clearance, radial, f1)
-        for i in range(n):
-            states[k + 1, i] = pred[i]
-        for j in range(m):
-            df = f1[j] - fk[j]
-            for i in range(n):
-                states[k + 1, i] += g2_t[b, j, i] * df
+            states[k + 1, i] = cur[0, i]
     _project_outputs(states, c_out, out)
     return out, states
 
@@ -552,21 +576,6 @@ def _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, z0, static, clea
 #: diagnosed until this) 0.5 %, over 50 us 0.04 %; a strong cubic (78 um orbit) diverged at 200 us, was 2.6 % off
 #: at 100 us and 0.03 % at 50 us (test).
 MAX_NONLINEAR_STEP_S = 5.0e-5
-
-
-def _substepped(us: np.ndarray, uz: np.ndarray, block: np.ndarray, substeps: int
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The inputs on a grid ``substeps`` times finer: the smooth (first-order held) input linearly interpolated,
-    which is the path its hold follows, the step input and the speed block held; ``(N - 1) * substeps + 1``
-    samples, sample ``k`` of the coarse grid at ``k * substeps``."""
-    n = us.shape[0]
-    frac = np.arange(substeps) / substeps
-    between = us[:-1, None, :] * (1.0 - frac)[None, :, None] + us[1:, None, :] * frac[None, :, None]
-    fine_us = np.vstack([between.reshape(-1, us.shape[1]), us[-1:]])
-    fine_uz = np.vstack([np.repeat(uz[:-1], substeps, axis=0), uz[-1:]])
-    fine_block = np.concatenate([np.repeat(block[:-1], substeps), block[-1:]])
-    assert fine_us.shape[0] == (n - 1) * substeps + 1
-    return np.ascontiguousarray(fine_us), np.ascontiguousarray(fine_uz), np.ascontiguousarray(fine_block)
 
 
 def simulate_cubic(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.ndarray, h_s: float,
@@ -605,8 +614,6 @@ def simulate_cubic(build_a: Callable[[float], np.ndarray], b: np.ndarray, c: np.
     radial = 0 if static_m is None else (1 if clearance_m is None else 2)
     static = np.zeros(m) if static_m is None else np.ascontiguousarray(static_m, dtype=float)
     clearance = np.zeros(m) if clearance_m is None else np.ascontiguousarray(clearance_m, dtype=float)
-    if substeps > 1:
-        us, uz, block = _substepped(us, uz, block, substeps)
     out, states = _propagate_cubic(phi, g1, g2, block, us, uz, q0, np.ascontiguousarray(c, dtype=float),
-                                   np.ascontiguousarray(k3, dtype=float), z_index, static, clearance, radial)
-    return out[::substeps][n_pre:], states[::substeps][n_pre:]
+                                   np.ascontiguousarray(k3, dtype=float), z_index, static, clearance, radial, substeps)
+    return out[n_pre:], states[n_pre:]

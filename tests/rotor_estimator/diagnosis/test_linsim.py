@@ -234,7 +234,7 @@ def test_the_compiled_recursions_equal_a_plain_loop_of_their_equations_on_severa
     small = dict(phi=0.9 * phi, g1=0.1 * g1, g2=0.1 * g2, us=0.1 * us, uz=0.1 * uz, q0=0.1 * q0)
     for radial in (0, 1, 2):
         out_c, states_c = _propagate_cubic(small["phi"], small["g1"], small["g2"], block, small["us"], small["uz"],
-                                           small["q0"], c_out, k3, 2, static, clearance, radial)
+                                           small["q0"], c_out, k3, 2, static, clearance, radial, 1)
         assert np.all(np.isfinite(states_c)) and np.any(states_c[-1])
         q = small["q0"].copy()
         f_k, f_1 = np.empty(m), np.empty(m)
@@ -270,6 +270,44 @@ def test_the_chunked_free_response_equals_the_plain_recursion_across_speed_block
         ref[k] = c_out @ s
         s = phi[block[k]] @ s
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
+def _written_out_substeps(us, uz, block, substeps):
+    """The inputs on a grid ``substeps`` times finer: the smooth (first-order held) input linearly interpolated,
+    which is the path its hold follows, the step input and the speed block held; ``(N - 1) * substeps + 1``
+    samples, sample ``k`` of the coarse grid at ``k * substeps``."""
+    n = us.shape[0]
+    frac = np.arange(substeps) / substeps
+    between = us[:-1, None, :] * (1.0 - frac)[None, :, None] + us[1:, None, :] * frac[None, :, None]
+    fine_us = np.vstack([between.reshape(-1, us.shape[1]), us[-1:]])
+    fine_uz = np.vstack([np.repeat(uz[:-1], substeps, axis=0), uz[-1:]])
+    fine_block = np.concatenate([np.repeat(block[:-1], substeps), block[-1:]])
+    assert fine_us.shape[0] == (n - 1) * substeps + 1
+    return np.ascontiguousarray(fine_us), np.ascontiguousarray(fine_uz), np.ascontiguousarray(fine_block)
+
+
+@pytest.mark.parametrize("radial", [0, 1, 2])
+def test_the_substeps_run_inside_the_recursion_equal_the_recursion_over_inputs_written_out_on_the_finer_grid(radial):
+    """``_propagate_cubic`` with 4 substeps per sample (the smooth input on its straight line, the step input and
+    the block held, states kept at the samples) equals, bit for bit at every sample, the same recursion with one
+    substep over the inputs written out on the 4x finer grid: two speed blocks, a step input, each force law."""
+    from rotor_estimator.diagnosis.linsim import _propagate_cubic
+
+    rng = np.random.default_rng(8)
+    n_samples, n, m, substeps = 300, 8, 4, 4
+    phi = 0.9 * rng.normal(size=(2, n, n)) * 0.25 / np.sqrt(n)
+    g1, g2 = 0.1 * rng.normal(size=(2, n, m)), 0.1 * rng.normal(size=(2, n, m))
+    block = np.repeat(np.arange(2), n_samples // 2).astype(np.int64)
+    us, uz = 0.1 * rng.normal(size=(n_samples, m)), np.zeros((n_samples, m))
+    uz[40:42] = 0.1 * rng.normal(size=(2, m))
+    q0, c_out = 0.1 * rng.normal(size=n), rng.normal(size=(6, n))
+    k3, static = np.abs(rng.normal(size=m)) * 0.05, rng.normal(size=m) * 0.2
+    clearance = np.abs(rng.normal(size=m)) * 0.1
+    inside = _propagate_cubic(phi, g1, g2, block, us, uz, q0, c_out, k3, 2, static, clearance, radial, substeps)
+    fine_us, fine_uz, fine_block = _written_out_substeps(us, uz, block, substeps)
+    fine = _propagate_cubic(phi, g1, g2, fine_block, fine_us, fine_uz, q0, c_out, k3, 2, static, clearance, radial, 1)
+    assert np.all(np.isfinite(inside[1])) and np.any(inside[1][-1])
+    assert np.array_equal(inside[0], fine[0][::substeps]) and np.array_equal(inside[1], fine[1][::substeps])
 
 
 @pytest.mark.parametrize("form", ["contact", "cubic"])
