@@ -231,8 +231,9 @@ def score(results: list[dict], labels: dict, rigs: dict | None = None) -> dict:
         elif len(truth) == 1:
             t1 = best == truth[0] or (len(tied) <= 2 and truth[0] in tied)
             t2 = best != "none" and truth[0] in top2
-        else:
-            t1, t2 = best in truth, best != "none" and set(truth) <= top2
+        else:  # a pair: both members in the top two, or a set verdict of at most two that holds both
+            t1 = best in truth
+            t2 = best != "none" and (set(truth) <= top2 or (len(tied) <= 2 and set(truth) <= tied))
         gap = r["before"] / lab["noise_rms_m"] if "before" in r else float("nan")
         shrink_err = float("nan")
         if truth and best != "none" and "before" in r:

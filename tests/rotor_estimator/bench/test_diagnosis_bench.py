@@ -69,6 +69,22 @@ def test_a_tie_scores_as_a_hit_only_with_two_members_holding_the_truth_and_cover
         in format_score(s2)
 
 
+def test_a_pair_counts_when_a_set_verdict_of_two_holds_both_members_and_not_in_a_larger_set():
+    """The issue's pair criterion, "both members in the top two or the verdict set": a tie set {unbalance,
+    pedestal} holds the pair unbalance + pedestal although the top two singles are unbalance and runout; a set of
+    three holding both is no hit (a set verdict counts only with at most two members), nor is a set of two that
+    holds one member."""
+    labels = {k: _label(["residual_unbalance", "pedestal"]) for k in "abc"}
+    base = {"best_effect": "residual_unbalance", "second_effect": "none", "tie": True,
+            "top_two": ["residual_unbalance", "probe_runout"], "before": 2e-6, "shrink_ratio": 2.0, "seconds": 1.0}
+    res = [{**base, "case": "a", "verdict_set": ["residual_unbalance", "pedestal"]},
+           {**base, "case": "b", "verdict_set": ["residual_unbalance", "pedestal", "probe_runout"]},
+           {**base, "case": "c", "verdict_set": ["residual_unbalance", "probe_runout"]}]
+    s = score(res, labels)
+    assert s["pairs_both_in_top2"] == [True, False, False]
+    assert [x["top1"] for x in s["rows"]] == [True, True, True]  # a pair's top-1: the verdict holds a member
+
+
 def test_a_nonlinear_bearing_case_is_scored_against_its_tangent_coefficients():
     """A label with the coefficients linearized about the true static equilibrium (a hardening bearing under
     gravity) scores the estimate against them: an estimate at the tangent is covered with zero error, and
