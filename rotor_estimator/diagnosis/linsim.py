@@ -368,7 +368,8 @@ def _free_response(phi, block, c_out, s0, n_samples, floor):
     """``out[k, :, i] = C Phi_k ... Phi_1 s0[:, i]``: the output of each initial state ``s0[:, i]`` (no input).
 
     Chunked: over a chunk of samples that share one speed block ``b``, ``out[k0 + j] = (C Phi_b^j) s[k0]``
-    with ``C Phi_b^j`` computed once per block, and the state is carried to the next chunk by ``Phi_b``.
+    with ``C Phi_b^j`` computed once per block, and the state is carried to the next chunk by ``Phi_b^64``
+    (:data:`FREE_RESPONSE_CHUNK` samples).
     Per sample this costs ``p n q`` products instead of ``(p + n) n q`` (3x for the rigid rotor's 8 states).
     Stops (zeros after) at a chunk whose first state is below ``floor`` times its start: a decayed transient.
     """
