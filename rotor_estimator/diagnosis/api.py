@@ -23,7 +23,7 @@ from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.effects.base import separating_measurements
 from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, TIE_LR_QUANTILE,
                                               TIE_MARGIN_BIC, EffectFit, Ranking, coefficients_cov_over_models,
-                                              misfit, nominal_solution, parameter_covariance, profiled_or_local,
+                                              misfit, exact_nominal, parameter_covariance, profiled_or_local,
                                               rank_effects, sampled_nominal_cov)
 from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
@@ -406,7 +406,7 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
     say(f"nominal fit: EKF ({passes} passes), then output-error refinement of the 8 coefficients")
     carried_noise = fit_rate_noise_std_m(record_rate, factor)  # None: read at the fits' rate
     ctx = build_context(recording, rig, config, passes=passes, noise_std_m=carried_noise)
-    sol0, _, ho0 = nominal_solution(ctx)
+    _, ho0, sol0 = exact_nominal(ctx)
     rk = rank_effects(ctx, library, progress=say)
     if rk.nominal_coefficients is not None:
         # a re-polish from an effect's refit found a better optimum of the nominal model than its own fit: the
@@ -414,7 +414,7 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
         # effect is measured against (seen: the first nominal fit at kxx 8x and kyy negative, a clearance
         # contact's record, its coefficients reported 2e9 stds off)
         ctx = recentered(ctx, rk.nominal_coefficients)
-        sol0, _, ho0 = nominal_solution(ctx)
+        _, ho0, sol0 = exact_nominal(ctx)
         rk = replace(rk, nominal_rss_m2=sol0.rss_m2, nominal_held_out_rms_m=ho0)  # what the report compares with
     where = budget(ctx.t_s[ctx.mask], (ctx.y_m - sol0.prediction_m)[ctx.mask], ctx.shaft.angle_rad[ctx.mask],
                    ctx.shaft.speed_rad_s[ctx.mask], ctx.impact_force_n[ctx.mask], ctx.noise_std_m)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rotor_estimator.core.config import load_rig_file
-from rotor_estimator.diagnosis.context import build_context
+from rotor_estimator.diagnosis.context import COEFFICIENT_SCALE, build_context
 from rotor_estimator.bench.effect_sim import EffectScenario, HiddenEffects, simulate_with_effects
 from rotor_estimator.diagnosis.effects import TimingSkew
 from rotor_estimator.diagnosis.ranking import _stable, rank_effects
@@ -490,11 +490,46 @@ def test_a_fit_holding_the_coefficients_has_the_exact_misfit_at_them():
     assert not np.array_equal(free.coefficients, r1)
 
 
+def test_the_nominal_reference_and_a_first_pass_are_measured_by_the_exact_misfit_not_their_linearization():
+    """Every BIC the ranking compares is the exact (re-simulated) misfit's: the nominal's at the context's
+    coefficients equals :func:`joint_misfit`'s there, and a first pass's equals the better of its stepped point
+    and the context's coefficients re-simulated, with the effect's parameters counted as its own fit counts them.
+    About coefficients 5-20 % off the linearized BICs are not those numbers (the independent computation and
+    the linearization disagree), so the test fails when either keeps its linearized BIC."""
+    from rotor_estimator.diagnosis.context import recentered
+    from rotor_estimator.diagnosis.effects import ResidualUnbalance
+    from rotor_estimator.diagnosis.fitting import bic
+    from rotor_estimator.diagnosis.ranking import (RESIDUAL_SCALE, exact_cost, exact_first_pass, exact_nominal,
+                                                   fit_effect, joint_misfit, nominal_params, nominal_solution)
+
+    ctx = _short_unbalance_context(impact=True)
+    r1 = load_rig_file().rig.true_coefficients.as_array() * np.array([1.05, 0.9, 1.1, 0.97, 1.2, 1.0, 1.0, 0.85])
+    ctx1 = recentered(ctx, r1)
+    nominal_bic, _, sol = exact_nominal(ctx1)
+    fun0, _, _ = joint_misfit(ctx1, None)
+    direct = bic(float(np.sum(fun0(r1 / COEFFICIENT_SCALE) ** 2)) / RESIDUAL_SCALE ** 2, sol.n_obs,
+                 nominal_params(ctx1))
+    assert nominal_bic == pytest.approx(direct, abs=0.05)
+    assert abs(nominal_solution(ctx1)[1] - nominal_bic) > 1.0  # the linearized step's BIC is another number
+
+    effect = ResidualUnbalance()
+    first = fit_effect(ctx1, effect, reference_bic=nominal_bic)
+    fun, lo, hi = joint_misfit(ctx1, effect)
+    held = replace(first, coefficients=r1)
+    cost = min(exact_cost(fun, lo, hi, first), exact_cost(fun, lo, hi, held))
+    expected = bic(2.0 * cost / RESIDUAL_SCALE ** 2, first.n_obs, nominal_params(ctx1) + first.n_params)
+    exact = exact_first_pass(ctx1, effect, first, (), nominal_bic)
+    assert exact.exact and not first.exact
+    assert exact.bic == pytest.approx(expected, abs=1e-6)
+    assert exact.delta_bic == pytest.approx(nominal_bic - expected, abs=1e-6)
+    assert abs(first.bic - exact.bic) > 1.0
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("impact", [False, True])
 def test_a_joint_refit_never_reports_a_point_the_exact_misfit_ranks_below_its_start(impact):
-    """:func:`refine` returns a fit whose exact (re-simulated) misfit is no worse than its first pass's, at
-    coefficients that make the rotor stable: a linearized step it cannot confirm is not taken (seen on a record
+    """:func:`refine` returns a fit whose exact (re-simulated) misfit is no worse than its first pass's, with
+    that misfit's BIC, at coefficients that make the rotor stable: a linearized step it cannot confirm is not taken (seen on a record
     without an impact: a step to kxx = -44 kN/m, an unstable rotor, reported as the verdict's bearings)."""
     from rotor_estimator.diagnosis.context import rigid_model_is_stable
     from rotor_estimator.diagnosis.effects import ResidualUnbalance
@@ -507,6 +542,12 @@ def test_a_joint_refit_never_reports_a_point_the_exact_misfit_ranks_below_its_st
     fun, lo, hi = joint_misfit(ctx, effect)
     assert exact_cost(fun, lo, hi, refined) <= exact_cost(fun, lo, hi, first)
     assert rigid_model_is_stable(ctx.mats, refined.coefficients, ctx.mean_speed_rad_s)
+    # and its BIC is that exact misfit's, not the linearization's about its point
+    from rotor_estimator.diagnosis.fitting import bic
+    from rotor_estimator.diagnosis.ranking import RESIDUAL_SCALE, nominal_params
+    exact = bic(2.0 * exact_cost(fun, lo, hi, refined) / RESIDUAL_SCALE ** 2, refined.n_obs,
+                nominal_params(ctx) + refined.n_params)
+    assert refined.exact and refined.bic == pytest.approx(exact, abs=1e-6)
 
 
 @pytest.mark.slow
