@@ -529,8 +529,9 @@ def test_the_nominal_reference_and_a_first_pass_are_measured_by_the_exact_misfit
 @pytest.mark.parametrize("impact", [False, True])
 def test_a_joint_refit_never_reports_a_point_the_exact_misfit_ranks_below_its_start(impact):
     """:func:`refine` returns a fit whose exact (re-simulated) misfit is no worse than its first pass's, with
-    that misfit's BIC, at coefficients that make the rotor stable: a linearized step it cannot confirm is not taken (seen on a record
-    without an impact: a step to kxx = -44 kN/m, an unstable rotor, reported as the verdict's bearings)."""
+    that misfit's BIC, at coefficients that make the rotor stable: a linearized step it cannot confirm is not
+    taken (seen on a record without an impact: a step to kxx = -44 kN/m, an unstable rotor, reported as the
+    verdict's bearings)."""
     from rotor_estimator.diagnosis.context import rigid_model_is_stable
     from rotor_estimator.diagnosis.effects import ResidualUnbalance
     from rotor_estimator.diagnosis.ranking import exact_cost, fit_effect, joint_misfit, nominal_solution, refine
