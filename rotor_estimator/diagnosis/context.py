@@ -425,6 +425,11 @@ def without_cross_coupling(coefficients: np.ndarray) -> np.ndarray:
     return r
 
 
+#: The direct damping terms (cxx, cyy) among the 8 coefficients of Eq. 2: never negative in a passive bearing, so
+#: every fit bounds them below by 0.
+DIRECT_DAMPING = np.array([False] * 4 + [True, False, False, True])
+
+
 def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np.ndarray, shaft: ShaftTrack,
                 schedule: SpeedSchedule, u_smooth: np.ndarray, u_step: np.ndarray, h_s: float, starts, *,
                 max_nfev: int, x_scale: float | None = None, start_transient: bool = False,
@@ -441,7 +446,9 @@ def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np
     the rig ran with a bounded response, and the periodic re-simulation exists for an unstable rotor too, so
     a record without an impact could otherwise be fitted by one (seen: an independent 5-sample skew of one
     probe plane, fitted with cxx = -670 N s/m and a mode growing at 73 1/s). An unstable start is moved
-    toward the first stable start, or toward the stable :func:`without_cross_coupling` form of the prior."""
+    toward the first stable start, or toward the stable :func:`without_cross_coupling` form of the prior.
+    LM is unbounded: a start that ends with negative direct damping is fitted again inside the passive bounds
+    (:func:`_passive_refit`), as the joint refits are bounded."""
     speed_rad_s = float(np.mean(shaft.speed_rad_s[rows]))
     wall = 1e3 * (float(np.sqrt(np.mean(y_m[rows] ** 2))) + 1e-12) * 1e6
 
@@ -467,6 +474,32 @@ def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np
         p0 = stable_start(mats, r0, toward, speed_rad_s) / COEFFICIENT_SCALE
         try:
             res = least_squares(residual, p0, method="lm", x_scale=x_scale, diff_step=1e-4, max_nfev=max_nfev * 9)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if np.any(res.x[DIRECT_DAMPING] < 0.0):  # LM is unbounded: fit again inside the passive bounds
+            passive = _passive_refit(residual, [res.x, p0], mats, toward, speed_rad_s, x_scale, max_nfev)
+            res = res if passive is None else passive
+        if best is None or res.cost < best.cost:
+            best = res
+    return best
+
+
+def _passive_refit(residual, starts: list[np.ndarray], mats, toward: np.ndarray, speed_rad_s: float,
+                   x_scale: float | None, max_nfev: int):
+    """:func:`fit_nominal`'s fit again with the direct damping bounded below by 0 (a passive bearing), as the joint
+    refits are, from each of ``starts`` (scaled coefficients) with its negative direct damping set to 0 and moved
+    toward the stable ``toward`` (its direct damping also set to at least 0). Best result; ``None`` when none runs.
+    Seen: a record with unmodelled 2X forces of 280 N fitted by LM with cyy = -2 993 N s/m and kxx = 10 MN/m,
+    where every exact re-simulation of the effects is out of bounds."""
+    lower = np.where(DIRECT_DAMPING, 0.0, -np.inf)
+    passive = np.maximum(np.asarray(toward, float), lower)
+    best = None
+    for p in starts:
+        r = np.maximum(np.asarray(p, float) * COEFFICIENT_SCALE, lower)
+        p0 = stable_start(mats, r, passive, speed_rad_s) / COEFFICIENT_SCALE  # on the line between two passive points
+        try:
+            res = least_squares(residual, p0, method="trf", bounds=(lower, np.inf), x_scale=x_scale or 1.0,
+                                diff_step=1e-4, max_nfev=max_nfev)
         except (ValueError, np.linalg.LinAlgError):
             continue
         if best is None or res.cost < best.cost:

@@ -29,10 +29,11 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rotor_estimator.core.linear_filters import single_threaded_blas
-from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, PRIOR_ROWS, FitContext, coefficient_difference_steps,
-                                              fit_nominal, nuisance_columns, recentered, rigid_model_is_stable,
-                                              stable_start, start_in_effect, start_transient_sensitivity,
-                                              with_coefficients, without_cross_coupling)
+from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, DIRECT_DAMPING, PRIOR_ROWS, FitContext,
+                                              coefficient_difference_steps, fit_nominal, nuisance_columns,
+                                              recentered, rigid_model_is_stable, stable_start, start_in_effect,
+                                              start_transient_sensitivity, with_coefficients,
+                                              without_cross_coupling)
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.fitting import (LinearSolution, fixed_columns, Projector, bic, coefficients_after,
                                               correlation_segment, gain_prior_rows, spectral_covariance,
@@ -701,7 +702,7 @@ def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, 
     # direct damping cannot be negative in a passive bearing (the MAP point of a record without an impact,
     # where only the prior holds the coefficients, was seen at cxx = -350 N s/m)
     nl_lo, nl_hi = effect.nl_bounds(ctx) if effect is not None else (np.zeros(0), np.zeros(0))
-    lo = np.concatenate([np.where(_DIRECT_DAMPING, 0.0, -np.inf), nl_lo])
+    lo = np.concatenate([np.where(DIRECT_DAMPING, 0.0, -np.inf), nl_lo])
     hi = np.concatenate([np.full(8, np.inf), nl_hi])
     return fun, lo, hi
 
@@ -785,7 +786,11 @@ def _refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectF
     """
     n_nl = len(effect.nl_names)
     fun, lo, hi = joint_misfit(ctx, effect, base)
-    best = fit
+
+    def first_pass_kept(basins=fit.basins) -> EffectFit:
+        """The refit not used: the first pass ``fit`` with the BIC of its exact misfit."""
+        return replace(_exactly(ctx, effect, base, fit, exact_cost(fun, lo, hi, fit), reference_bic), basins=basins)
+
     starts = [(r, fit.nl) for r in (fit.coefficients, *extra_starts)]
     starts += [(fit.coefficients, np.asarray(p, float)) for p in nl_starts]
     starts += [(np.asarray(r, float), np.asarray(p, float)) for r, p in start_pairs]
@@ -802,7 +807,7 @@ def _refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectF
             explored.append(run)
     results.sort(key=lambda r: r.cost)
     if not results:
-        return _exactly(ctx, effect, base, best, exact_cost(fun, lo, hi, best), reference_bic)
+        return first_pass_kept()
     if len(starts) > 1 and polish_nfev > 0:  # the two best starts continued (a short run may not rank basins)
         polished = []
         for r in results[:2]:
@@ -820,7 +825,7 @@ def _refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectF
     if not _stable(ctx, res.x[:8] * COEFFICIENT_SCALE):
         # the rigid nominal with these coefficients diverges (possible with a pedestal or a hardening in the
         # loop): linearizing about it gives meaningless columns and residuals, so the refit is not used
-        return replace(_exactly(ctx, effect, base, best, exact_cost(fun, lo, hi, best), reference_bic), basins=basins)
+        return first_pass_kept(basins)
     try:
         ctx_new = recentered(ctx, res.x[:8] * COEFFICIENT_SCALE)
         base_new = tuple(_refit_base(ctx_new, b) for b in base)
@@ -834,10 +839,10 @@ def _refine(ctx: FitContext, effect: Effect, fit: EffectFit, base: tuple[EffectF
             new = fit_effect(ctx_new, effect, base_new, reference_bic=reference_bic, nl0=nl0, hold_coefficients=True)
             new_cost = float(res.cost)
     except (ValueError, np.linalg.LinAlgError):
-        return replace(_exactly(ctx, effect, base, best, exact_cost(fun, lo, hi, best), reference_bic), basins=basins)
+        return first_pass_kept(basins)
     # the exact misfit decides (the two fits' BICs are linearized about different points), and is the BIC
-    best_cost = exact_cost(fun, lo, hi, best)
-    chosen, cost = (new, new_cost) if new_cost <= best_cost else (best, best_cost)
+    first_cost = exact_cost(fun, lo, hi, fit)
+    chosen, cost = (new, new_cost) if new_cost <= first_cost else (fit, first_cost)
     return replace(_exactly(ctx, effect, base, chosen, cost, reference_bic), basins=basins)
 
 
@@ -1121,8 +1126,6 @@ def coefficients_std_with_basins(fit: EffectFit) -> np.ndarray:
     return np.sqrt(np.abs(np.diag(coefficients_cov_with_basins(fit))))
 
 
-#: The direct damping terms (cxx, cyy) among the 8 coefficients, bounded below by 0 in the joint refits.
-_DIRECT_DAMPING = np.array([False] * 4 + [True, False, False, True])
 
 
 def _stable(ctx: FitContext, coefficients: np.ndarray) -> bool:
@@ -1295,6 +1298,27 @@ def exact_nominal(ctx: FitContext) -> tuple[float, float, LinearSolution]:
     sol = solve_linear(ctx, None, None, hold_coefficients=True)
     return (bic(sol.rss_m2 + sol.prior_m2, sol.n_obs, nominal_params(ctx)),
             held_out_rms(ctx, None, None, hold_coefficients=True), sol)
+
+
+def polished_nominal(ctx: FitContext, reference_bic: float,
+                     singles: list[EffectFit]) -> tuple[float, np.ndarray | None]:
+    """The nominal reference after polishing (:func:`nominal_at`) from the context's coefficients, then from each
+    exact single's that beats the reference so far (lowest BIC first): the lowest BIC of the stable polished
+    nominals that moved off the context's coefficients, and their coefficients (``reference_bic`` and ``None`` when
+    none beats it). A better nominal basin found by an effect's refit is not credited to the effect."""
+    ref, ref_coefficients = reference_bic, None
+
+    def polish_from(start: np.ndarray) -> None:
+        nonlocal ref, ref_coefficients
+        b, c = nominal_at(ctx, start)
+        if b < ref and _stable(ctx, c) and not np.allclose(c, ctx.coefficients, rtol=1e-6):
+            ref, ref_coefficients = b, c
+
+    polish_from(ctx.coefficients)
+    for f in sorted(singles, key=lambda f: f.bic):
+        if f.exact and f.bic < ref and not np.allclose(f.coefficients, ctx.coefficients, rtol=1e-6):
+            polish_from(f.coefficients)
+    return ref, ref_coefficients
 
 
 def _with_reference(f: EffectFit, ref_bic: float) -> EffectFit:
@@ -1557,14 +1581,7 @@ def rank_effects(ctx: FitContext, library: tuple[Effect, ...] = LIBRARY, *, seco
     # promised 22 000 below what any coefficient set delivers (an independent record of separate pedestals)
     say("stage 3/4: nominal reference re-polished from every refit")
     ref, ho_ref, sol_ref = exact_nominal(ctx)
-    ref_coefficients = None
-    for f in [None, *sorted(singles, key=lambda f: f.bic)]:
-        start = ctx.coefficients if f is None else f.coefficients
-        if f is not None and (not f.exact or f.bic >= ref or np.allclose(start, ctx.coefficients, rtol=1e-6)):
-            continue
-        b, c = nominal_at(ctx, start)
-        if b < ref and _stable(ctx, c) and not np.allclose(c, ctx.coefficients, rtol=1e-6):
-            ref, ref_coefficients = b, c
+    ref, ref_coefficients = polished_nominal(ctx, ref, singles)
     if ref_coefficients is not None:  # the held-out check's reference at the same coefficients
         ho_ref = held_out_rms(with_coefficients(ctx, ref_coefficients), None, None, hold_coefficients=True)
     singles = [_with_reference(f, ref) for f in singles]

@@ -181,3 +181,39 @@ def test_a_fit_from_rest_has_the_coefficient_covariance_of_its_exact_misfit_once
     exact = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac)) * sigma2)
     assert np.all(np.abs(np.log(moving / exact)) < np.log(1.5)), (moving, exact)
     assert np.max(np.abs(np.log(exact / held))) > np.log(3.0), (held, exact)
+
+
+def test_the_nominal_fit_never_returns_negative_direct_damping_even_where_the_record_is_fitted_best_by_it():
+    """A bound: the noise-free record of a rotor that is stable with cyy = -300 N s/m (strong cross-coupled
+    damping; such a set fits a record with unmodelled 2X forces best: an independent record was fitted by LM with
+    cyy = -2 993 N s/m), fitted from that very set, where unbounded LM stays (its misfit is 0 there). A passive
+    bearing has cxx, cyy >= 0, as the joint refits are bounded, so the fit ends at cyy >= 0, and no worse than
+    the truth with its cyy set to 0 (the passive refit starts there)."""
+    from rotor_estimator.core.config import BearingCoefficients
+    from rotor_estimator.core.model import imbalance_force, impact_force, rotor_matrices
+    from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, WARMUP_S, fit_nominal, nuisance_fit,
+                                                   rigid_model_is_stable, shaft_track, simulate_nominal,
+                                                   start_columns)
+    from rotor_estimator.diagnosis.linsim import SpeedSchedule
+
+    negative = np.array([1.5e6, 1.0e6, -3.5e5, 1.9e6, 3500.0, 2100.0, -3900.0, -300.0])
+    rig = load_rig_file().rig
+    mats = rotor_matrices(rig)
+    assert rigid_model_is_stable(mats, negative, rig.speed_rad_s)
+    rig = replace(rig, true_coefficients=BearingCoefficients.from_array(negative))
+    rec = simulate(rig, Scenario(duration_s=0.08, noise_std_m=0.0), seed=None).recording
+    shaft = shaft_track(rec)
+    t = rec.time_s()
+    h = float(np.median(np.diff(t)))
+    rows = shaft.valid & (t >= t[0] + WARMUP_S)
+    inputs = (rig, mats, t, rec.probes_m, rows, shaft, SpeedSchedule.from_speed(shaft.speed_rad_s),
+              imbalance_force(mats, shaft.angle_rad, shaft.speed_rad_s, shaft.accel_rad_s2),
+              impact_force(mats, rec.impact_force_n), h)
+    fit = fit_nominal(*inputs, [negative], max_nfev=15, x_scale=1.0)
+    fitted = fit.x * COEFFICIENT_SCALE
+    assert fitted[4] >= 0.0 and fitted[7] >= 0.0, fitted
+    clipped = negative * np.array([1.0] * 7 + [0.0])
+    assert rigid_model_is_stable(mats, clipped, rig.speed_rad_s)
+    error = rec.probes_m - simulate_nominal(rig, mats, clipped, t, *inputs[5:])[0]
+    error_um = (error - nuisance_fit(start_columns(mats, clipped, inputs[6], h), error, rows))[rows] * 1e6
+    assert fit.cost <= 0.5 * float(np.sum(error_um ** 2)) > 0.0
