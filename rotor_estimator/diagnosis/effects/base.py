@@ -67,9 +67,9 @@ class Effect:
     #: The nominal fit absorbs this effect by dragging the coefficients far (a 1X force), so its joint refit
     #: with the coefficients always runs, whatever its first pass shows.
     refit_always: ClassVar[bool] = False
-    #: Its structural starts (:meth:`refine_starts`) are also tried from the prior coefficients r0: the
-    #: effect can drag the nominal fit into a basin (negative or 10x stiffness) about which its first pass
-    #: finds nothing.
+    #: Its refit's starts (:meth:`refine_starts`: structural starts, or a keyphasor offset's angle read against
+    #: r0's response) are also tried from the prior coefficients r0: the effect can drag the nominal fit into a
+    #: basin (negative or 10x stiffness) about which its first pass finds nothing.
     starts_from_prior: ClassVar[bool] = False
     #: Its pair on the top single is refitted jointly whatever the pair's first pass (it shows only once the
     #: coefficients move back from the values the top single absorbed it into).

@@ -22,6 +22,9 @@ class TachometerOffset(Effect):
     name: ClassVar[str] = "tach_offset"
     kind: ClassVar[str] = "force"
     refit_always: ClassVar[bool] = True
+    #: Its refit's start angle is read against the prior coefficients' 1X (:meth:`refine_starts`), so it is also
+    #: tried at those coefficients: a large offset drags the nominal fit, and the first pass's coefficients with it
+    starts_from_prior: ClassVar[bool] = True
     nests_in: ClassVar[str | None] = "residual_unbalance"
     responses: ClassVar[dict[str, str]] = {
         "slow_roll": "vanishes (it rotates the known imbalance response)",
