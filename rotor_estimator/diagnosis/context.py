@@ -428,6 +428,8 @@ def without_cross_coupling(coefficients: np.ndarray) -> np.ndarray:
 #: The direct damping terms (cxx, cyy) among the 8 coefficients of Eq. 2: never negative in a passive bearing, so
 #: every fit bounds them below by 0.
 DIRECT_DAMPING = np.array([False] * 4 + [True, False, False, True])
+#: The lower bounds of the 8 scaled coefficients in every bounded fit: 0 for the direct damping, free otherwise.
+PASSIVE_LOWER_BOUND = np.where(DIRECT_DAMPING, 0.0, -np.inf)
 
 
 def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np.ndarray, shaft: ShaftTrack,
@@ -491,7 +493,7 @@ def _passive_refit(residual, starts: list[np.ndarray], mats, toward: np.ndarray,
     toward the stable ``toward`` (its direct damping also set to at least 0). Best result; ``None`` when none runs.
     Seen: a record with unmodelled 2X forces of 280 N fitted by LM with cyy = -2 993 N s/m and kxx = 10 MN/m,
     where every exact re-simulation of the effects is out of bounds."""
-    lower = np.where(DIRECT_DAMPING, 0.0, -np.inf)
+    lower = PASSIVE_LOWER_BOUND
     passive = np.maximum(np.asarray(toward, float), lower)
     best = None
     for p in starts:

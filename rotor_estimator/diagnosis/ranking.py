@@ -29,7 +29,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rotor_estimator.core.linear_filters import single_threaded_blas
-from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, DIRECT_DAMPING, PRIOR_ROWS, FitContext,
+from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, PASSIVE_LOWER_BOUND, PRIOR_ROWS, FitContext,
                                               coefficient_difference_steps, fit_nominal, nuisance_columns,
                                               recentered, rigid_model_is_stable, stable_start, start_in_effect,
                                               start_transient_sensitivity, with_coefficients,
@@ -702,7 +702,7 @@ def joint_misfit(ctx: FitContext, effect: Effect | None, base: tuple[EffectFit, 
     # direct damping cannot be negative in a passive bearing (the MAP point of a record without an impact,
     # where only the prior holds the coefficients, was seen at cxx = -350 N s/m)
     nl_lo, nl_hi = effect.nl_bounds(ctx) if effect is not None else (np.zeros(0), np.zeros(0))
-    lo = np.concatenate([np.where(DIRECT_DAMPING, 0.0, -np.inf), nl_lo])
+    lo = np.concatenate([PASSIVE_LOWER_BOUND, nl_lo])
     hi = np.concatenate([np.full(8, np.inf), nl_hi])
     return fun, lo, hi
 
@@ -1124,7 +1124,6 @@ def coefficients_std_with_basins(fit: EffectFit) -> np.ndarray:
     if not fit.basins:
         return np.asarray(fit.coefficients_std, float)
     return np.sqrt(np.abs(np.diag(coefficients_cov_with_basins(fit))))
-
 
 
 

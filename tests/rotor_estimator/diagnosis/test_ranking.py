@@ -83,7 +83,7 @@ def test_unstable_start_moves_toward_its_own_stable_form_and_else_to_the_nominal
 
 
 @pytest.mark.slow
-@pytest.mark.extended  # the 250 N case below checks the same pair at near-limit skew
+@pytest.mark.extended  # the 250 N case below checks the same pair at near-limit skew (extended too)
 @pytest.mark.parametrize("seed", [31])
 def test_misalignment_seen_through_skewed_probes_names_both_effects(seed):
     """Two hidden effects (a 2X force and a 60-90 us channel skew): both are the top two, not runout.
@@ -299,6 +299,9 @@ def test_profile_widens_a_valley_the_local_curvature_calls_narrow(monkeypatch):
 
 
 @pytest.mark.slow
+# 157 s alone, the default run's longest test. No default test checks the misalignment + skew pair: it is this one
+# and the seed-31 test above, both extended (the skew's single forms and misalignment's parameters stay default)
+@pytest.mark.extended
 def test_strong_misalignment_with_near_limit_skew_is_the_pair_not_runout():
     """A 250 N 2X force seen through probes skewed by up to 100 us (the skew's own gap 1.27x): both named.
 
