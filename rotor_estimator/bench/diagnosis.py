@@ -392,11 +392,17 @@ def rig_facts(case_dir: str | Path) -> tuple[tuple[float, float], float] | None:
 
 
 def format_score(s: dict) -> str:
-    """The score as text: one block per generator when ``s`` carries ``by_generator``."""
+    """The score as text: one block per generator when ``s`` carries ``by_generator``; first, when a run kept
+    results from an earlier one (:func:`run`), how many."""
+    kept = s.get("cases_kept_from_earlier_run", 0)
+    head = [f"KEPT: {kept} of the {s.get('cases_in_set', kept)} cases' results were kept from an earlier run in "
+            f"{s.get('results_dir', 'the set')}, not diagnosed again by this code (--fresh diagnoses every case)"
+            ] if kept else []
     if s.get("by_generator"):
-        return "\n\n".join(f"== generator: {g} ({sub['cases']} cases) ==\n" + _format_one(sub)
-                            for g, sub in s["by_generator"].items())
-    return _format_one(s)
+        blocks = [f"== generator: {g} ({sub['cases']} cases) ==\n" + _format_one(sub)
+                  for g, sub in s["by_generator"].items()]
+        return "\n\n".join(["\n".join(head)] + blocks if head else blocks)
+    return "\n".join(head + [_format_one(s)])
 
 
 def _format_one(s: dict) -> str:
@@ -514,11 +520,14 @@ def score_sets(set_dirs: list[str | Path], decimate: int | str = "auto") -> dict
 
 def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, *, jobs: int = 2,
         use_ross: bool = True, progress=None, generator: str = "own", generate: bool = True,
-        on_diagnosed=None, decimate: int | str = "auto") -> dict:
+        on_diagnosed=None, decimate: int | str = "auto", fresh: bool = False, on_kept=None) -> dict:
     """Generate (``generator``: own, independent or both; ``generate=False`` diagnoses the set already in
     ``out_dir``, skipping the cases with a kept result), diagnose (``jobs`` processes; ``on_diagnosed(done,
     total)`` after each case; ``decimate``: the diagnosis's, its results kept apart by :func:`results_dir_name`),
-    score each generator apart (:func:`score_sets`). Returns the score dict."""
+    score each generator apart (:func:`score_sets`). Returns the score dict, with ``cases_kept_from_earlier_run``
+    (reported by ``on_kept(kept, total, results_dir)`` before any case is diagnosed: a rerun after a code change
+    would otherwise score the old code's results as its own). ``fresh``: delete the set's kept results first, so
+    every case is diagnosed by this code."""
     import functools
     import tempfile
 
@@ -536,7 +545,12 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
     case_dirs = sorted(str(p) for p in (out / "cases").iterdir() if p.is_dir())
     results_dir = out / results_dir_name(decimate)
     results_dir.mkdir(exist_ok=True)
+    if fresh:
+        for d in case_dirs:
+            (results_dir / f"{Path(d).name}.json").unlink(missing_ok=True)
     kept = kept_results(results_dir, case_dirs)
+    if kept and on_kept:
+        on_kept(len(kept), len(case_dirs), results_dir)
     pending = [d for d in case_dirs if Path(d).name not in kept]
     done = [len(kept)]
 
@@ -551,6 +565,8 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
                     workers=max(1, jobs), inline=False, progress=_tick)
     s = score_sets([out], decimate)  # the labels are opened only now
     results = list(kept_results(results_dir, case_dirs).values())
+    s["cases_kept_from_earlier_run"] = len(kept)
+    s["results_dir"] = str(results_dir)
     s["generation_seconds"] = t_gen
     s["total_seconds"] = time.time() - t0
     (out / "results.json").write_text(json.dumps({"results": results, "score": s}, indent=1, default=str))

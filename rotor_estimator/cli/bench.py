@@ -48,6 +48,8 @@ def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
     if args.set is not None and len(args.set) > 1 and not args.score_only:
         raise InputError("several --set directories are scored together with --score-only; diagnose each first "
                          "(`bench diagnosis --set DIR`)")
+    if args.score_only and args.fresh:
+        raise InputError("--fresh diagnoses every case again; --score-only diagnoses none: give one of them")
     if args.score_only:
         s = score_sets(args.set, args.decimate)
     else:
@@ -55,7 +57,10 @@ def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
                 use_ross=not args.no_ross, generator=args.generator, generate=args.set is None,
                 progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True),
                 on_diagnosed=lambda k, n: print(f"diagnosed {k} / {n}", file=sys.stderr, flush=True),
-                decimate=args.decimate)
+                decimate=args.decimate, fresh=args.fresh,
+                on_kept=lambda k, n, d: print(f"resuming: {k} of {n} cases already diagnosed in {d} are kept, not "
+                                              "diagnosed again (--fresh diagnoses every case)", file=sys.stderr,
+                                              flush=True))
     if args.json:
         brief = {k: v for k, v in s.items() if k != "rows"}
         brief["by_generator"] = {g: {k: v for k, v in sub.items() if k != "rows"}
@@ -181,6 +186,10 @@ def add_parser(subparsers: Any) -> None:
     b.add_argument("--score-only", action="store_true",
                    help="with --set: score the cases diagnosed so far (results/ of each set, pooled), diagnose none; "
                         "a rerun without it resumes the others")
+    b.add_argument("--fresh", action="store_true",
+                   help="delete the set's kept results first and diagnose every case (without it, a "
+                        "rerun resumes: the cases already diagnosed keep their results, from whatever code made "
+                        "them, and the score says how many)")
     b.add_argument("--decimate", type=cli_types.decimation, default="auto", metavar="Q|auto",
                    help="the diagnosis's --decimate (default auto, as `diagnose`); the results are kept apart by it: "
                         "results_auto/, results/ for 1 (the full rate), results_decimate<Q>/")

@@ -385,3 +385,53 @@ def test_reference_units_are_each_cases_seconds_over_its_reference_and_cases_wit
     assert run_workload() == run_workload()
     ticks = iter([0.0, 1.0, 10.0, 10.2, 20.0, 20.3])  # runs of 1.0, 0.2 and 0.3 s
     assert abs(reference_seconds(3, clock=lambda: next(ticks)) - 0.3) < 1e-12
+
+
+def test_a_rerun_says_how_many_results_it_kept_and_fresh_diagnoses_every_case_again(tmp_path, monkeypatch):
+    """A rerun over a set with kept results resumes: it must say so before diagnosing (``on_kept``) and in the
+    score (a rerun after a code change once scored the old code's results as its own, silently); ``fresh``
+    deletes them and diagnoses every case with this code."""
+    import json
+    from types import SimpleNamespace
+
+    import rotor_estimator.bench.diagnosis as bench
+    import rotor_estimator.core.config as config
+    import rotor_estimator.diagnosis.api as api
+
+    summary = {"best_effect": "pedestal", "second_effect": "none", "verdict_set": [], "tie": None,
+               "coefficients_verdict": {}, "coefficients_verdict_std": {}, "top_two": ["pedestal"],
+               "residual_rms_before": 2e-6, "residual_rms_after": 1e-6, "shrink_ratio": 2.0, "ranking": [],
+               "ranking_pairs": [], "best_effect_fit": None, "second_effect_fit": None,
+               "decision_rule": {"nominal_held_out_rms_m": 1e-6}}
+    diagnosed = []
+
+    def fake_diagnose(*_args, **_kwargs):
+        diagnosed.append(1)
+        return SimpleNamespace(summary=lambda: summary)
+
+    monkeypatch.setattr(config, "load_rig_file", lambda _p: SimpleNamespace(rig=None, estimator=None))
+    monkeypatch.setattr(bench, "load_recording", lambda _p: None)
+    monkeypatch.setattr(bench, "rig_facts", lambda _d: None)  # as for a rig file that cannot be read
+    monkeypatch.setattr(api, "diagnose", fake_diagnose)
+    monkeypatch.setattr(bench, "map_ordered", lambda fn, items, progress=None, **_kw: [
+        (fn(i), progress(1) if progress else None)[0] for i in items])  # in this process, so the fakes hold
+    for cid in ("case_000", "case_001"):
+        (tmp_path / "cases" / cid).mkdir(parents=True)
+    (tmp_path / "labels").mkdir()
+    (tmp_path / "labels" / "labels.json").write_text(json.dumps(
+        {"case_000": _label(["pedestal"]), "case_001": _label(["pedestal"])}))
+    results = tmp_path / bench.results_dir_name()
+    results.mkdir()
+    (results / "case_000.json").write_text(json.dumps(  # an earlier code's miss
+        {"case": "case_000", "best_effect": "probe_runout", "second_effect": "none", "top_two": ["probe_runout"],
+         "before": 2e-6, "shrink_ratio": 2.0, "seconds": 4.0}))
+    told = []
+    s = bench.run(out_dir=tmp_path, generate=False, on_kept=lambda k, n, d: told.append((k, n, d)))
+    assert told == [(1, 2, results)] and len(diagnosed) == 1  # only case_001 was diagnosed
+    assert s["cases_kept_from_earlier_run"] == 1 and s["top1"] == 0.5
+    assert format_score(s).startswith("KEPT: 1 of the 2 cases' results were kept from an earlier run")
+    told.clear()
+    s = bench.run(out_dir=tmp_path, generate=False, fresh=True, on_kept=lambda k, n, d: told.append((k, n, d)))
+    assert told == [] and len(diagnosed) == 3  # both diagnosed again
+    assert s["cases_kept_from_earlier_run"] == 0 and s["top1"] == 1.0
+    assert not format_score(s).startswith("KEPT")
