@@ -395,14 +395,13 @@ def format_score(s: dict) -> str:
     """The score as text: one block per generator when ``s`` carries ``by_generator``; first, when a run kept
     results from an earlier one (:func:`run`), how many."""
     kept = s.get("cases_kept_from_earlier_run", 0)
-    head = [f"KEPT: {kept} of the {s.get('cases_in_set', kept)} cases' results were kept from an earlier run in "
-            f"{s.get('results_dir', 'the set')}, not diagnosed again by this code (--fresh diagnoses every case)"
-            ] if kept else []
+    head = (f"KEPT: {kept} of the {s.get('cases_in_set', kept)} cases' results were kept from an earlier run in "
+            f"{s.get('results_dir', 'the set')}, not diagnosed again by this code (--fresh diagnoses every case)\n"
+            if kept else "")
     if s.get("by_generator"):
-        blocks = [f"== generator: {g} ({sub['cases']} cases) ==\n" + _format_one(sub)
-                  for g, sub in s["by_generator"].items()]
-        return "\n\n".join(["\n".join(head)] + blocks if head else blocks)
-    return "\n".join(head + [_format_one(s)])
+        return head + "\n\n".join(f"== generator: {g} ({sub['cases']} cases) ==\n" + _format_one(sub)
+                                   for g, sub in s["by_generator"].items())
+    return head + _format_one(s)
 
 
 def _format_one(s: dict) -> str:

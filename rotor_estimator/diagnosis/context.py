@@ -430,6 +430,7 @@ def without_cross_coupling(coefficients: np.ndarray) -> np.ndarray:
 DIRECT_DAMPING = np.array([False] * 4 + [True, False, False, True])
 #: The lower bounds of the 8 scaled coefficients in every bounded fit: 0 for the direct damping, free otherwise.
 PASSIVE_LOWER_BOUND = np.where(DIRECT_DAMPING, 0.0, -np.inf)
+PASSIVE_LOWER_BOUND.setflags(write=False)  # shared by every fit: no caller may change it in place
 
 
 def fit_nominal(rig: RigConfig, mats, t_s: np.ndarray, y_m: np.ndarray, rows: np.ndarray, shaft: ShaftTrack,
@@ -493,15 +494,14 @@ def _passive_refit(residual, starts: list[np.ndarray], mats, toward: np.ndarray,
     toward the stable ``toward`` (its direct damping also set to at least 0). Best result; ``None`` when none runs.
     Seen: a record with unmodelled 2X forces of 280 N fitted by LM with cyy = -2 993 N s/m and kxx = 10 MN/m,
     where every exact re-simulation of the effects is out of bounds."""
-    lower = PASSIVE_LOWER_BOUND
-    passive = np.maximum(np.asarray(toward, float), lower)
+    passive = np.maximum(np.asarray(toward, float), PASSIVE_LOWER_BOUND)
     best = None
     for p in starts:
-        r = np.maximum(np.asarray(p, float) * COEFFICIENT_SCALE, lower)
+        r = np.maximum(np.asarray(p, float) * COEFFICIENT_SCALE, PASSIVE_LOWER_BOUND)
         p0 = stable_start(mats, r, passive, speed_rad_s) / COEFFICIENT_SCALE  # on the line between two passive points
         try:
-            res = least_squares(residual, p0, method="trf", bounds=(lower, np.inf), x_scale=x_scale or 1.0,
-                                diff_step=1e-4, max_nfev=max_nfev)
+            res = least_squares(residual, p0, method="trf", bounds=(PASSIVE_LOWER_BOUND, np.inf),
+                                x_scale=x_scale or 1.0, diff_step=1e-4, max_nfev=max_nfev)
         except (ValueError, np.linalg.LinAlgError):
             continue
         if best is None or res.cost < best.cost:

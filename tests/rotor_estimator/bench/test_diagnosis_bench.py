@@ -177,18 +177,16 @@ def test_two_sets_are_pooled_with_their_cases_kept_apart(tmp_path):
     assert "PARTIAL: 2 of the set's 4 cases" in format_score(s)
 
 
-def test_a_decimated_diagnosis_is_asked_for_and_kept_and_scored_apart_from_the_full_rates(tmp_path, monkeypatch):
-    """``bench diagnosis --decimate Q``: each case's diagnosis is asked for at that factor, its result is kept in
-    ``results_decimate<Q>/`` (the full rate's ``results/`` untouched), and ``score_sets(..., decimate=Q)`` scores
-    those results alone; the default (auto) has its own ``results_auto/``."""
-    import json
+def _fake_pedestal_diagnosis(monkeypatch) -> list:
+    """Every case's diagnosis replaced by a fixed pedestal verdict, without reading its rig file or recording;
+    returns the list of the ``decimate`` each call was asked for (one entry per diagnosis)."""
     from types import SimpleNamespace
 
     import rotor_estimator.bench.diagnosis as bench
     import rotor_estimator.core.config as config
     import rotor_estimator.diagnosis.api as api
 
-    asked = []
+    asked: list = []
     summary = {"best_effect": "pedestal", "second_effect": "none", "verdict_set": [], "tie": None,
                "coefficients_verdict": {}, "coefficients_verdict_std": {}, "top_two": ["pedestal"],
                "residual_rms_before": 2e-6, "residual_rms_after": 1e-6, "shrink_ratio": 2.0, "ranking": [],
@@ -202,6 +200,18 @@ def test_a_decimated_diagnosis_is_asked_for_and_kept_and_scored_apart_from_the_f
     monkeypatch.setattr(config, "load_rig_file", lambda _p: SimpleNamespace(rig=None, estimator=None))
     monkeypatch.setattr(bench, "load_recording", lambda _p: None)
     monkeypatch.setattr(api, "diagnose", fake_diagnose)
+    return asked
+
+
+def test_a_decimated_diagnosis_is_asked_for_and_kept_and_scored_apart_from_the_full_rates(tmp_path, monkeypatch):
+    """``bench diagnosis --decimate Q``: each case's diagnosis is asked for at that factor, its result is kept in
+    ``results_decimate<Q>/`` (the full rate's ``results/`` untouched), and ``score_sets(..., decimate=Q)`` scores
+    those results alone; the default (auto) has its own ``results_auto/``."""
+    import json
+
+    import rotor_estimator.bench.diagnosis as bench
+
+    asked = _fake_pedestal_diagnosis(monkeypatch)
     (tmp_path / "cases" / "case_000").mkdir(parents=True)
     (tmp_path / "labels").mkdir()
     (tmp_path / "labels" / "labels.json").write_text(json.dumps({"case_000": _label(["pedestal"])}))
@@ -392,27 +402,11 @@ def test_a_rerun_says_how_many_results_it_kept_and_fresh_diagnoses_every_case_ag
     score (a rerun after a code change once scored the old code's results as its own, silently); ``fresh``
     deletes them and diagnoses every case with this code."""
     import json
-    from types import SimpleNamespace
 
     import rotor_estimator.bench.diagnosis as bench
-    import rotor_estimator.core.config as config
-    import rotor_estimator.diagnosis.api as api
 
-    summary = {"best_effect": "pedestal", "second_effect": "none", "verdict_set": [], "tie": None,
-               "coefficients_verdict": {}, "coefficients_verdict_std": {}, "top_two": ["pedestal"],
-               "residual_rms_before": 2e-6, "residual_rms_after": 1e-6, "shrink_ratio": 2.0, "ranking": [],
-               "ranking_pairs": [], "best_effect_fit": None, "second_effect_fit": None,
-               "decision_rule": {"nominal_held_out_rms_m": 1e-6}}
-    diagnosed = []
-
-    def fake_diagnose(*_args, **_kwargs):
-        diagnosed.append(1)
-        return SimpleNamespace(summary=lambda: summary)
-
-    monkeypatch.setattr(config, "load_rig_file", lambda _p: SimpleNamespace(rig=None, estimator=None))
-    monkeypatch.setattr(bench, "load_recording", lambda _p: None)
+    diagnosed = _fake_pedestal_diagnosis(monkeypatch)
     monkeypatch.setattr(bench, "rig_facts", lambda _d: None)  # as for a rig file that cannot be read
-    monkeypatch.setattr(api, "diagnose", fake_diagnose)
     monkeypatch.setattr(bench, "map_ordered", lambda fn, items, progress=None, **_kw: [
         (fn(i), progress(1) if progress else None)[0] for i in items])  # in this process, so the fakes hold
     for cid in ("case_000", "case_001"):
