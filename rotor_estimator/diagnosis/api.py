@@ -17,14 +17,14 @@ from rotor_estimator.core.config import COEFFICIENT_NAMES_WITH_UNITS, EstimatorC
 from rotor_estimator.core.linear_filters import single_threaded_blas
 from rotor_estimator.core.recording import RigRecording
 from rotor_estimator.diagnosis.context import (COEFFICIENT_SCALE, WARMUP_S, FitContext, build_context,
-                                              recentered, slowest_decay_rate_1_per_s,
+                                              only_steady_1x, recentered, slowest_decay_rate_1_per_s,
                                               start_transient_sensitivity)
 from rotor_estimator.diagnosis.effects import LIBRARY, Effect
 from rotor_estimator.diagnosis.effects.base import separating_measurements
 from rotor_estimator.diagnosis.ranking import (HELD_OUT_TOLERANCE, SIGNIFICANCE_DELTA_BIC, TIE_LR_QUANTILE,
                                               TIE_MARGIN_BIC, EffectFit, Ranking, coefficients_cov_over_models,
                                               misfit, exact_nominal, parameter_covariance, profiled_or_local,
-                                              rank_effects, sampled_nominal_cov)
+                                              rank_effects, sampled_coefficient_cov)
 from rotor_estimator.diagnosis.residuals import CHANNELS, budget, innovation_consistency
 
 #: Residual RMS over noise RMS above which the gap left after the verdict is reported as unexplained.
@@ -429,7 +429,7 @@ def diagnose(recording: RigRecording, rig: RigConfig, config: EstimatorConfig, *
         nominal_cov_si = profiled_or_local(ctx, None, ctx.coefficients, np.zeros(0), nominal_cov_si)
         if only_steady_1x(ctx):  # a curved valley of coefficient sets: its posterior drawn instead
             say("coefficient uncertainty: posterior draws of the nominal model (one steady speed, no impact)")
-            nominal_cov_si = sampled_nominal_cov(ctx, ctx.coefficients, nominal_cov_si)
+            nominal_cov_si = sampled_coefficient_cov(ctx, None, ctx.coefficients, np.zeros(0), nominal_cov_si)
         # and the spread of the other models' optima, weighted by their evidence
         nominal_cov_si = coefficients_cov_over_models(ctx.coefficients, nominal_cov_si, rk.nominal_bic,
                                                       [*rk.singles, *rk.pairs])
@@ -509,12 +509,6 @@ def prior_driven_warnings(nominal_rss_m2: float, verdict_rss_m2: float, n_obs: i
             "the bearing coefficient prior, its coefficients nearer the rig file's r0. The data do not tell it "
             "from other effects of the same signature (at one steady speed without an impact: unbalance, keyphasor "
             "offset, probe gain and orientation, a channel delay, 1X runout); record an impact or a second speed"]
-
-
-def only_steady_1x(ctx: FitContext) -> bool:
-    """True for a fit span with no impact and no start transient estimated (a record at one steady speed, whose
-    coefficients only its synchronous response shows)."""
-    return not ctx.start_transient and not bool(np.any(ctx.impact_force_n[ctx.mask] != 0.0))
 
 
 def verdict_stability_warnings(row: dict, span_s: float) -> list[str]:

@@ -241,6 +241,12 @@ class FitContext:
         return 1.0 / self.sample_rate_hz
 
 
+def only_steady_1x(ctx: FitContext) -> bool:
+    """True for a fit span with no impact and no start transient estimated (a record at one steady speed, whose
+    coefficients only its synchronous response shows)."""
+    return not ctx.start_transient and not bool(np.any(ctx.impact_force_n[ctx.mask] != 0.0))
+
+
 def nuisance_columns(start_columns_m: np.ndarray) -> np.ndarray:
     """``[D, S]`` (N, 4, 4 + s): one DC column per probe (its gap), then the start transient's (s = 0 or 8)."""
     n = start_columns_m.shape[0]

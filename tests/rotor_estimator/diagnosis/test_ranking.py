@@ -1044,3 +1044,87 @@ def test_a_pair_that_no_longer_beats_the_top_single_once_converged_gives_way_to_
     calls.clear()
     chosen, converged = first_standing_pair(claimed, converge, top, threshold=30.0, tries=2)
     assert chosen is None and calls == ["a", "b"] and len(converged) == 2
+
+
+def test_the_verdicts_posterior_draws_marginalize_its_effect_parameters(monkeypatch):
+    """On a record of one steady speed without an impact the verdict's coefficient covariance is that of
+    posterior draws of its model, the effect's nonlinear parameters drawn with the coefficients: with one
+    coefficient correlated 0.9 with the effect's parameter (a Gaussian posterior, unit stds in the scaled
+    coefficients), its variance is the marginal 1 (within 25 %: the draws' sampling error), not the 0.19 it
+    has with the parameter held at its estimate, which is the start given; the others stay 1."""
+    from rotor_estimator.diagnosis import ranking
+
+    scale = COEFFICIENT_SCALE
+    n_noise = 400
+    cov = np.eye(9)
+    cov[7, 8] = cov[8, 7] = 0.9
+    sigma2 = 1e-2
+    root = np.sqrt(sigma2) * np.linalg.cholesky(np.linalg.inv(cov)).T  # root^T root / sigma2 = the precision
+    noise = np.full(n_noise, np.sqrt(sigma2 * (n_noise + 1) / n_noise))  # f0 @ f0 / (size - 8) = sigma2
+    x_hat = np.concatenate([np.linspace(1.0, 3.0, 8), [0.5]])
+
+    def fun(x):
+        return np.concatenate([noise, root @ (x - x_hat)])
+
+    monkeypatch.setattr(ranking, "joint_misfit", lambda ctx, effect, base=(): (fun, np.full(9, -np.inf),
+                                                                              np.full(9, np.inf)))
+    monkeypatch.setattr(ranking, "_stable", lambda ctx, coefficients: True)
+    held = np.eye(8)
+    held[7, 7] = 1.0 - 0.9 ** 2  # the coefficient's variance given the parameter
+    got = ranking.sampled_coefficient_cov(None, object(), x_hat[:8] * scale, x_hat[8:],
+                                          held * np.outer(scale, scale), nl_std=np.array([np.sqrt(0.19)]))
+    variance = np.diag(got) / scale ** 2
+    assert variance[7] == pytest.approx(1.0, rel=0.25)
+    assert np.allclose(variance[:7], 1.0, rtol=0.25)
+
+
+def test_widening_by_a_covariance_keeps_the_wider_of_the_two_along_every_direction():
+    """``widened_by(C, D)`` is ``C`` where ``D`` is narrower in every direction, ``D`` where it is wider in every
+    one, and along mixed directions the wider of each: with ``C = diag(1, 4)`` and ``D = diag(3, 1)`` it is
+    ``diag(3, 4)``; in a rotated frame the same, rotated; and the result is never narrower than either along the
+    eigen-directions of their difference (here: any unit vector's variance at least both inputs')."""
+    from rotor_estimator.diagnosis.ranking import widened_by
+
+    c, d = np.diag([1.0, 4.0]), np.diag([3.0, 1.0])
+    assert np.allclose(widened_by(c, c / 2), c)
+    assert np.allclose(widened_by(c, 2 * c), 2 * c)
+    assert np.allclose(widened_by(c, d), np.diag([3.0, 4.0]))
+    rot = np.array([[np.cos(0.7), -np.sin(0.7)], [np.sin(0.7), np.cos(0.7)]])
+    assert np.allclose(widened_by(rot @ c @ rot.T, rot @ d @ rot.T), rot @ np.diag([3.0, 4.0]) @ rot.T)
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        a, b = rng.standard_normal((2, 3, 3))
+        ca, cb = a @ a.T, b @ b.T
+        w = widened_by(ca, cb)
+        for u in rng.standard_normal((10, 3)):
+            assert u @ w @ u >= max(u @ ca @ u, u @ cb @ u) * (1 - 1e-9) or np.allclose(u @ w @ u, 0)
+
+
+@pytest.mark.slow
+def test_a_verdict_on_one_steady_speed_without_an_impact_reports_its_posterior_draws(monkeypatch):
+    """Wiring: when the record is one steady speed without an impact (:func:`.context.only_steady_1x`, forced here
+    on a short record), the verdict's coefficient covariance is the one its posterior draws give (a stand-in
+    returning 4x the profiled covariance it is handed), widened further only by the basins and the model average
+    (positive semidefinite additions), and the progress says so; without that condition no draws are taken."""
+    from rotor_estimator.diagnosis import ranking
+    from rotor_estimator.diagnosis.effects import ResidualUnbalance
+
+    ctx = _short_unbalance_context(impact=False)
+    handed = []
+
+    def four_times(ctx, effect, coefficients, nl, cov_si, base=(), nl_std=None):
+        handed.append((effect, np.array(cov_si)))
+        return 4.0 * np.asarray(cov_si)
+
+    monkeypatch.setattr(ranking, "sampled_coefficient_cov", four_times)
+    monkeypatch.setattr(ranking, "only_steady_1x", lambda c: False)
+    ranking.rank_effects(ctx, (ResidualUnbalance(),))
+    assert handed == []
+    monkeypatch.setattr(ranking, "only_steady_1x", lambda c: True)
+    said = []
+    rk = ranking.rank_effects(ctx, (ResidualUnbalance(),), progress=said.append)
+    assert rk.best is not None and rk.best.name == "residual_unbalance"
+    assert len(handed) == 1 and isinstance(handed[0][0], ResidualUnbalance)
+    assert any("posterior draws of the verdict's model" in line for line in said)
+    extra = (rk.best.coefficients_cov - 4.0 * handed[0][1]) / np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
+    assert np.linalg.eigvalsh(0.5 * (extra + extra.T)).min() >= -1e-9 * np.abs(extra).max()
