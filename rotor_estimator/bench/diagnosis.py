@@ -17,6 +17,9 @@ effects each show beyond the coefficients and the partner's model, the label's
 """
 from __future__ import annotations
 
+import collections
+import functools
+import hashlib
 import json
 import time
 from collections.abc import Callable
@@ -393,11 +396,18 @@ def rig_facts(case_dir: str | Path) -> tuple[tuple[float, float], float] | None:
 
 def format_score(s: dict) -> str:
     """The score as text: one block per generator when ``s`` carries ``by_generator``; first, when a run kept
-    results from an earlier one (:func:`run`), how many."""
+    results from an earlier one (:func:`run`), how many (and how many other code made), and when the results
+    come from more than one version of the code (:func:`code_stamp`; unstamped: made before the stamp), which."""
     kept = s.get("cases_kept_from_earlier_run", 0)
+    other = s.get("cases_kept_from_other_code", 0)
     head = (f"KEPT: {kept} of the {s.get('cases_in_set', kept)} cases' results were kept from an earlier run in "
-            f"{s.get('results_dir', 'the set')}, not diagnosed again by this code (--fresh diagnoses every case)\n"
+            f"{s.get('results_dir', 'the set')}, not diagnosed again by this code"
+            f"{f', {other} of them made by other code' if other else ''} (--fresh diagnoses every case)\n"
             if kept else "")
+    by_code = s.get("results_by_code", {})
+    if len(by_code) > 1:
+        head += ("CODE: the results were made by " + str(len(by_code)) + " versions of the code ("
+                 + ", ".join(f"{stamp}: {n}" for stamp, n in by_code.items()) + ")\n")
     if s.get("by_generator"):
         return head + "\n\n".join(f"== generator: {g} ({sub['cases']} cases) ==\n" + _format_one(sub)
                                    for g, sub in s["by_generator"].items())
@@ -462,12 +472,28 @@ def _format_one(s: dict) -> str:
     return "\n".join(out)
 
 
+@functools.lru_cache(maxsize=1)
+def code_stamp() -> str:
+    """The first 12 hex digits of a SHA-256 over the package's Python sources (their paths and bytes, in path
+    order): two runs share it exactly when their code is the same, whatever git says (a working tree with edits,
+    an installed wheel). Kept with each result (:func:`diagnose_and_keep`), so a rerun and the score can say which
+    results another code made."""
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode())
+        digest.update(b"\0")
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:12]
+
+
 def diagnose_and_keep(case_dir: str, results_dir: str, decimate: int | str = "auto") -> dict:
     """:func:`diagnose_case`, its result also written to ``results_dir/<case>.json`` (atomically: a run
-    stopped mid-write leaves no half file, and the case is diagnosed again on resume)."""
+    stopped mid-write leaves no half file, and the case is diagnosed again on resume), stamped with the code
+    that made it (``code``: :func:`code_stamp`)."""
     import os
 
-    r = diagnose_case(case_dir, decimate=decimate)
+    r = {**diagnose_case(case_dir, decimate=decimate), "code": code_stamp()}
     target = Path(results_dir) / f"{Path(case_dir).name}.json"
     tmp = target.with_suffix(f".json.tmp{os.getpid()}")
     tmp.write_text(json.dumps(r, indent=1, default=str))
@@ -511,6 +537,9 @@ def score_sets(set_dirs: list[str | Path], decimate: int | str = "auto") -> dict
                          "is empty)")
     s = score(results, labels, rigs)
     s["cases_in_set"] = total
+    # which code made the results (a pool of seeds may mix them by design; a rerun should not by accident)
+    by_code = collections.Counter(r.get("code", "unstamped") for r in results)
+    s["results_by_code"] = dict(sorted(by_code.items(), key=lambda kv: (-kv[1], kv[0])))  # most first, then by name
     s["by_generator"] = score_by_generator(results, labels, rigs)
     for g, sub in s["by_generator"].items():
         sub["cases_in_set"] = families.count(g)
@@ -524,10 +553,10 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
     ``out_dir``, skipping the cases with a kept result), diagnose (``jobs`` processes; ``on_diagnosed(done,
     total)`` after each case; ``decimate``: the diagnosis's, its results kept apart by :func:`results_dir_name`),
     score each generator apart (:func:`score_sets`). Returns the score dict, with ``cases_kept_from_earlier_run``
-    (reported by ``on_kept(kept, total, results_dir)`` before any case is diagnosed: a rerun after a code change
-    would otherwise score the old code's results as its own). ``fresh``: delete the set's kept results first, so
-    every case is diagnosed by this code."""
-    import functools
+    and ``cases_kept_from_other_code`` (reported by ``on_kept(kept, total, results_dir, other_code)`` before any
+    case is diagnosed: a rerun after a code change would otherwise score the old code's results as its own;
+    other code: a result whose :func:`code_stamp` is not this run's, or has none). ``fresh``: delete the set's
+    kept results first, so every case is diagnosed by this code."""
     import tempfile
 
     tmp = None
@@ -548,8 +577,9 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
         for d in case_dirs:
             (results_dir / f"{Path(d).name}.json").unlink(missing_ok=True)
     kept = kept_results(results_dir, case_dirs)
+    other_code = sum(1 for r in kept.values() if r.get("code") != code_stamp())
     if kept and on_kept:
-        on_kept(len(kept), len(case_dirs), results_dir)
+        on_kept(len(kept), len(case_dirs), results_dir, other_code)
     pending = [d for d in case_dirs if Path(d).name not in kept]
     done = [len(kept)]
 
@@ -565,6 +595,7 @@ def run(n_cases: int = 36, seed: int = 2024, out_dir: str | Path | None = None, 
     s = score_sets([out], decimate)  # the labels are opened only now
     results = list(kept_results(results_dir, case_dirs).values())
     s["cases_kept_from_earlier_run"] = len(kept)
+    s["cases_kept_from_other_code"] = other_code
     s["results_dir"] = str(results_dir)
     s["generation_seconds"] = t_gen
     s["total_seconds"] = time.time() - t0

@@ -58,9 +58,10 @@ def cmd_bench_diagnosis(args: argparse.Namespace) -> int:
                 progress=lambda cid: print(f"generated {cid}", file=sys.stderr, flush=True),
                 on_diagnosed=lambda k, n: print(f"diagnosed {k} / {n}", file=sys.stderr, flush=True),
                 decimate=args.decimate, fresh=args.fresh,
-                on_kept=lambda k, n, d: print(f"resuming: {k} of {n} cases already diagnosed in {d} are kept, not "
-                                              "diagnosed again (--fresh diagnoses every case)", file=sys.stderr,
-                                              flush=True))
+                on_kept=lambda k, n, d, other: print(
+                    f"resuming: {k} of {n} cases already diagnosed in {d} are kept, not diagnosed again"
+                    f"{f' ({other} of them made by other code than this run)' if other else ''} "
+                    "(--fresh diagnoses every case)", file=sys.stderr, flush=True))
     if args.json:
         brief = {k: v for k, v in s.items() if k != "rows"}
         brief["by_generator"] = {g: {k: v for k, v in sub.items() if k != "rows"}

@@ -397,10 +397,12 @@ def test_reference_units_are_each_cases_seconds_over_its_reference_and_cases_wit
     assert abs(reference_seconds(3, clock=lambda: next(ticks)) - 0.3) < 1e-12
 
 
-def test_a_rerun_says_how_many_results_it_kept_and_fresh_diagnoses_every_case_again(tmp_path, monkeypatch):
+def test_a_rerun_says_how_many_results_it_kept_and_which_code_made_them_and_fresh_diagnoses_every_case_again(
+        tmp_path, monkeypatch):
     """A rerun over a set with kept results resumes: it must say so before diagnosing (``on_kept``) and in the
-    score (a rerun after a code change once scored the old code's results as its own, silently); ``fresh``
-    deletes them and diagnoses every case with this code."""
+    score (a rerun after a code change once scored the old code's results as its own, silently), with how many
+    of them other code made (a result without this code's stamp); ``fresh`` deletes them and diagnoses every case
+    with this code, each result stamped with it, so a second rerun keeps them as this code's."""
     import json
 
     import rotor_estimator.bench.diagnosis as bench
@@ -416,16 +418,81 @@ def test_a_rerun_says_how_many_results_it_kept_and_fresh_diagnoses_every_case_ag
         {"case_000": _label(["pedestal"]), "case_001": _label(["pedestal"])}))
     results = tmp_path / bench.results_dir_name()
     results.mkdir()
-    (results / "case_000.json").write_text(json.dumps(  # an earlier code's miss
+    (results / "case_000.json").write_text(json.dumps(  # an earlier code's miss, made before the stamp
         {"case": "case_000", "best_effect": "probe_runout", "second_effect": "none", "top_two": ["probe_runout"],
          "before": 2e-6, "shrink_ratio": 2.0, "seconds": 4.0}))
     told = []
-    s = bench.run(out_dir=tmp_path, generate=False, on_kept=lambda k, n, d: told.append((k, n, d)))
-    assert told == [(1, 2, results)] and len(diagnosed) == 1  # only case_001 was diagnosed
-    assert s["cases_kept_from_earlier_run"] == 1 and s["top1"] == 0.5
-    assert format_score(s).startswith("KEPT: 1 of the 2 cases' results were kept from an earlier run")
+    s = bench.run(out_dir=tmp_path, generate=False, on_kept=lambda *a: told.append(a))
+    assert told == [(1, 2, results, 1)] and len(diagnosed) == 1  # only case_001 was diagnosed
+    assert s["cases_kept_from_earlier_run"] == 1 and s["cases_kept_from_other_code"] == 1 and s["top1"] == 0.5
+    assert s["results_by_code"] == {bench.code_stamp(): 1, "unstamped": 1}
+    text = format_score(s)
+    assert text.startswith("KEPT: 1 of the 2 cases' results were kept from an earlier run")
+    assert "1 of them made by other code" in text
+    assert f"CODE: the results were made by 2 versions of the code ({bench.code_stamp()}: 1, unstamped: 1)" in text
     told.clear()
-    s = bench.run(out_dir=tmp_path, generate=False, fresh=True, on_kept=lambda k, n, d: told.append((k, n, d)))
+    s = bench.run(out_dir=tmp_path, generate=False, fresh=True, on_kept=lambda *a: told.append(a))
     assert told == [] and len(diagnosed) == 3  # both diagnosed again
     assert s["cases_kept_from_earlier_run"] == 0 and s["top1"] == 1.0
-    assert not format_score(s).startswith("KEPT")
+    assert not format_score(s).startswith("KEPT") and "CODE:" not in format_score(s)
+    s = bench.run(out_dir=tmp_path, generate=False, on_kept=lambda *a: told.append(a))
+    assert told == [(2, 2, results, 0)] and len(diagnosed) == 3  # this code's results, kept
+    assert "made by other code" not in format_score(s) and "CODE:" not in format_score(s)
+
+
+def test_the_code_stamp_changes_with_any_source_byte_and_only_with_them(tmp_path, monkeypatch):
+    """The stamp is a hash of the package's Python sources (paths and bytes): the same for the same tree, and
+    different after one byte of one file changes or a file is added; files that are not Python leave it alone."""
+    import shutil
+
+    import rotor_estimator.bench.diagnosis as bench
+
+    tree = tmp_path / "pkg"
+    (tree / "bench").mkdir(parents=True)
+    shutil.copy(bench.__file__, tree / "bench" / "diagnosis.py")
+    (tree / "core.py").write_text("X = 1\n")
+    monkeypatch.setattr(bench, "__file__", str(tree / "bench" / "diagnosis.py"))
+
+    def stamp():
+        bench.code_stamp.cache_clear()
+        return bench.code_stamp()
+
+    first = stamp()
+    assert stamp() == first and len(first) == 12
+    (tree / "notes.md").write_text("not code")
+    assert stamp() == first
+    (tree / "core.py").write_text("X = 2\n")
+    changed = stamp()
+    assert changed != first
+    (tree / "extra.py").write_text("")
+    assert stamp() not in (first, changed)
+    bench.code_stamp.cache_clear()
+
+
+def test_the_command_says_before_diagnosing_how_many_kept_results_other_code_made(tmp_path, monkeypatch, capsys):
+    """`bench diagnosis --set DIR` over a set whose every case has a kept result (one of this code, one made
+    before the stamp) diagnoses nothing and says on stderr that it resumes, and how many of the kept results
+    other code made; the score it prints names the two versions."""
+    import json
+
+    import rotor_estimator.bench.diagnosis as bench
+    from rotor_estimator.cli.main import main
+
+    monkeypatch.setattr(bench, "rig_facts", lambda _d: None)
+    for cid in ("case_000", "case_001"):
+        (tmp_path / "cases" / cid).mkdir(parents=True)
+    (tmp_path / "labels").mkdir()
+    (tmp_path / "labels" / "labels.json").write_text(json.dumps(
+        {"case_000": _label(["pedestal"]), "case_001": _label(["pedestal"])}))
+    results = tmp_path / bench.results_dir_name()
+    results.mkdir()
+    kept = {"best_effect": "pedestal", "second_effect": "none", "top_two": ["pedestal"], "before": 2e-6,
+            "shrink_ratio": 2.0, "seconds": 4.0}
+    (results / "case_000.json").write_text(json.dumps({**kept, "case": "case_000"}))
+    (results / "case_001.json").write_text(json.dumps({**kept, "case": "case_001", "code": bench.code_stamp()}))
+    assert main(["bench", "diagnosis", "--set", str(tmp_path)]) == 0
+    out, err = capsys.readouterr()
+    assert f"resuming: 2 of 2 cases already diagnosed in {results} are kept, not diagnosed again (1 of them made " \
+           "by other code than this run)" in err
+    assert "diagnosed 1 / 2" not in err and "1 of them made by other code" in out
+    assert f"CODE: the results were made by 2 versions of the code ({bench.code_stamp()}: 1, unstamped: 1)" in out
