@@ -7,7 +7,7 @@ Used for the verdict's bearing coefficients (the nominal model's, or an effect's
 on a record of one steady speed without an impact: its 1X pins the 8 coefficients along a long curved valley
 (the nominal estimate and the truth seen 8 local stds apart with the truth inside the joint 95 % region), which
 neither the local curvature nor profiles along two directions describe, so the posterior is sampled instead
-(:func:`.ranking.sampled_coefficient_cov`). The misfit costs about 1 ms for the nominal model there and 2-8 ms
+(:func:`.ranking.sampled_coefficient_cov`). The misfit costs about 1 ms for the nominal model there and 2-9 ms
 with an effect.
 """
 from __future__ import annotations
