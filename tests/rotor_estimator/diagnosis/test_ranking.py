@@ -1105,15 +1105,17 @@ def test_a_verdict_on_one_steady_speed_without_an_impact_reports_its_posterior_d
     """Wiring: when the record is one steady speed without an impact (:func:`.context.only_steady_1x`, forced here
     on a short record), the verdict's coefficient covariance is the one its posterior draws give (a stand-in
     returning 4x the profiled covariance it is handed), widened further only by the basins and the model average
-    (positive semidefinite additions), and the progress says so; without that condition no draws are taken."""
+    (positive semidefinite additions), and the progress says so; the ensemble is started from the covariance
+    with the spread of the model's own optima (at least as wide as the profiled one); without that condition no
+    draws are taken."""
     from rotor_estimator.diagnosis import ranking
     from rotor_estimator.diagnosis.effects import ResidualUnbalance
 
     ctx = _short_unbalance_context(impact=False)
     handed = []
 
-    def four_times(ctx, effect, coefficients, nl, cov_si, base=(), nl_std=None):
-        handed.append((effect, np.array(cov_si)))
+    def four_times(ctx, effect, coefficients, nl, cov_si, base=(), nl_std=None, start_si=None):
+        handed.append((effect, np.array(cov_si), np.array(start_si)))
         return 4.0 * np.asarray(cov_si)
 
     monkeypatch.setattr(ranking, "sampled_coefficient_cov", four_times)
@@ -1125,6 +1127,8 @@ def test_a_verdict_on_one_steady_speed_without_an_impact_reports_its_posterior_d
     rk = ranking.rank_effects(ctx, (ResidualUnbalance(),), progress=said.append)
     assert rk.best is not None and rk.best.name == "residual_unbalance"
     assert len(handed) == 1 and isinstance(handed[0][0], ResidualUnbalance)
+    wider = (handed[0][2] - handed[0][1]) / np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
+    assert np.linalg.eigvalsh(0.5 * (wider + wider.T)).min() >= -1e-9 * max(np.abs(wider).max(), 1e-30)
     assert any("posterior draws of the verdict's model" in line for line in said)
     extra = (rk.best.coefficients_cov - 4.0 * handed[0][1]) / np.outer(COEFFICIENT_SCALE, COEFFICIENT_SCALE)
     assert np.linalg.eigvalsh(0.5 * (extra + extra.T)).min() >= -1e-9 * np.abs(extra).max()
