@@ -397,6 +397,23 @@ def test_reference_units_are_each_cases_seconds_over_its_reference_and_cases_wit
     assert abs(reference_seconds(3, clock=lambda: next(ticks)) - 0.3) < 1e-12
 
 
+def _two_pedestal_cases(root):
+    """A blind set of two pedestal cases (no records: the diagnosis is faked or every result kept) under ``root``,
+    with its empty results directory, which is returned."""
+    import json
+
+    import rotor_estimator.bench.diagnosis as bench
+
+    for cid in ("case_000", "case_001"):
+        (root / "cases" / cid).mkdir(parents=True)
+    (root / "labels").mkdir()
+    (root / "labels" / "labels.json").write_text(json.dumps(
+        {"case_000": _label(["pedestal"]), "case_001": _label(["pedestal"])}))
+    results = root / bench.results_dir_name()
+    results.mkdir()
+    return results
+
+
 def test_a_rerun_says_how_many_results_it_kept_and_which_code_made_them_and_fresh_diagnoses_every_case_again(
         tmp_path, monkeypatch):
     """A rerun over a set with kept results resumes: it must say so before diagnosing (``on_kept``) and in the
@@ -411,13 +428,7 @@ def test_a_rerun_says_how_many_results_it_kept_and_which_code_made_them_and_fres
     monkeypatch.setattr(bench, "rig_facts", lambda _d: None)  # as for a rig file that cannot be read
     monkeypatch.setattr(bench, "map_ordered", lambda fn, items, progress=None, **_kw: [
         (fn(i), progress(1) if progress else None)[0] for i in items])  # in this process, so the fakes hold
-    for cid in ("case_000", "case_001"):
-        (tmp_path / "cases" / cid).mkdir(parents=True)
-    (tmp_path / "labels").mkdir()
-    (tmp_path / "labels" / "labels.json").write_text(json.dumps(
-        {"case_000": _label(["pedestal"]), "case_001": _label(["pedestal"])}))
-    results = tmp_path / bench.results_dir_name()
-    results.mkdir()
+    results = _two_pedestal_cases(tmp_path)
     (results / "case_000.json").write_text(json.dumps(  # an earlier code's miss, made before the stamp
         {"case": "case_000", "best_effect": "probe_runout", "second_effect": "none", "top_two": ["probe_runout"],
          "before": 2e-6, "shrink_ratio": 2.0, "seconds": 4.0}))
@@ -479,13 +490,7 @@ def test_the_command_says_before_diagnosing_how_many_kept_results_other_code_mad
     from rotor_estimator.cli.main import main
 
     monkeypatch.setattr(bench, "rig_facts", lambda _d: None)
-    for cid in ("case_000", "case_001"):
-        (tmp_path / "cases" / cid).mkdir(parents=True)
-    (tmp_path / "labels").mkdir()
-    (tmp_path / "labels" / "labels.json").write_text(json.dumps(
-        {"case_000": _label(["pedestal"]), "case_001": _label(["pedestal"])}))
-    results = tmp_path / bench.results_dir_name()
-    results.mkdir()
+    results = _two_pedestal_cases(tmp_path)
     kept = {"best_effect": "pedestal", "second_effect": "none", "top_two": ["pedestal"], "before": 2e-6,
             "shrink_ratio": 2.0, "seconds": 4.0}
     (results / "case_000.json").write_text(json.dumps({**kept, "case": "case_000"}))
